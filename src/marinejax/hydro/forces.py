@@ -1,0 +1,129 @@
+"""Fossen's equations of motion for one rigid body in a fluid, body frame FLU.
+
+    M_RB ν̇ + C_RB(ν)ν + M_A ν̇_r + C_A(ν_r)ν_r + D(ν_r)ν_r + g(η) = τ,    ν_r = ν − ν_c
+
+ν = [v, ω]: body-frame linear (m/s) and angular (rad/s) velocity; wrenches are [force (N),
+moment about the centre of gravity (N m)] in the body frame. The body origin is the centre of
+gravity, so M_RB = diag(m, m, m, Ix, Iy, Iz).
+
+Added mass is solved exactly, not lagged: `hydro_terms` returns the acceleration ν̇ that solves
+(M_RB + M_A) ν̇ = everything else, and the wrench which, applied to the rigid body alone,
+produces that same ν̇ (τ_applied = τ_other − M_A ν̇). That wrench is what MuJoCo receives.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+from flax import struct
+
+from marinejax.hydro.params import HydroParams
+
+
+def skew(x: jnp.ndarray) -> jnp.ndarray:
+    """Skew-symmetric matrix S(x) with S(x) y = x × y."""
+    z = jnp.zeros_like(x[..., 0])
+    return jnp.stack(
+        [
+            jnp.stack([z, -x[..., 2], x[..., 1]], -1),
+            jnp.stack([x[..., 2], z, -x[..., 0]], -1),
+            jnp.stack([-x[..., 1], x[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def rigid_body_mass_matrix(mass: jnp.ndarray, inertia: jnp.ndarray) -> jnp.ndarray:
+    """M_RB (6, 6) for a body whose origin is its centre of gravity; mass in kg, principal inertia (3,) in kg m^2."""
+    return jnp.diag(jnp.concatenate([jnp.full((3,), mass), inertia]))
+
+
+def added_mass_matrix(params: HydroParams) -> jnp.ndarray:
+    """M_A (6, 6), diagonal, positive."""
+    return jnp.diag(params.added_mass)
+
+
+def coriolis_matrix(mass_matrix: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
+    """C(ν) (6, 6) of a symmetric mass matrix, Fossen's m2c form (skew-symmetric, so νᵀCν = 0)."""
+    m = 0.5 * (mass_matrix + mass_matrix.T)
+    a = m[:3, :3] @ nu[:3] + m[:3, 3:] @ nu[3:]
+    b = m[3:, :3] @ nu[:3] + m[3:, 3:] @ nu[3:]
+    sa, sb = skew(a), skew(b)
+    return jnp.block([[jnp.zeros((3, 3)), -sa], [-sa, -sb]])
+
+
+def damping_matrix(params: HydroParams, nu_r: jnp.ndarray) -> jnp.ndarray:
+    """D(ν_r) = D_L + diag(D_Q ⊙ |ν_r|) (6, 6); D(ν_r) ν_r is the drag magnitude (opposes motion)."""
+    return jnp.diag(params.linear_damping + params.quadratic_damping * jnp.abs(nu_r))
+
+
+def buoyancy_wrench(params: HydroParams, rot: jnp.ndarray, gravity: jnp.ndarray) -> jnp.ndarray:
+    """Buoyancy B = ρ g ∇ acting upward at the centre of buoyancy, as a body-frame wrench (6,).
+
+    rot: (3, 3) body-to-world rotation; gravity: scalar magnitude g (m/s^2).
+    """
+    up_body = rot[2, :]  # world +z expressed in the body frame (Rᵀ e_z)
+    force = params.fluid_density * gravity * params.volume * up_body
+    return jnp.concatenate([force, jnp.cross(params.center_of_buoyancy, force)])
+
+
+def current_in_body(rot: jnp.ndarray, current_world: jnp.ndarray, omega: jnp.ndarray):
+    """Irrotational current in the body frame: ν_c = [Rᵀ v_c, 0] and its derivative [−ω × Rᵀ v_c, 0].
+
+    current_world: (3,) m/s, world frame, held constant over the step.
+    """
+    vc = rot.T @ current_world
+    zeros = jnp.zeros(3)
+    return jnp.concatenate([vc, zeros]), jnp.concatenate([-jnp.cross(omega, vc), zeros])
+
+
+@struct.dataclass
+class HydroTerms:
+    """Result of one evaluation of the equations of motion (body frame FLU)."""
+
+    acceleration: jnp.ndarray  # (6,) ν̇, m/s^2 and rad/s^2
+    applied_wrench: jnp.ndarray  # (6,) wrench to apply to the rigid body (N, N m), gravity excluded
+
+
+def hydro_terms(
+    params: HydroParams,
+    mass: jnp.ndarray,
+    inertia: jnp.ndarray,
+    rot: jnp.ndarray,
+    nu: jnp.ndarray,
+    tau: jnp.ndarray,
+    current_world: jnp.ndarray,
+    gravity: jnp.ndarray,
+) -> HydroTerms:
+    """Solve the equations of motion for ν̇ and the wrench that reproduces it on the bare rigid body.
+
+    mass (kg), inertia (3,) kg m^2: rigid body; rot: (3, 3) body-to-world; nu: (6,) body velocity;
+    tau: (6,) propulsion wrench, body frame; current_world: (3,) m/s; gravity: g (m/s^2), pointing
+    along world −z. The weight m g is not part of `applied_wrench`: the rigid-body engine applies it.
+    """
+    nu_c, nu_c_dot = current_in_body(rot, current_world, nu[3:])
+    nu_r = nu - nu_c
+    m_a = added_mass_matrix(params)
+    m_rb = rigid_body_mass_matrix(mass, inertia)
+    weight = jnp.concatenate([-mass * gravity * rot[2, :], jnp.zeros(3)])
+    fluid = (
+        -coriolis_matrix(m_a, nu_r) @ nu_r
+        - damping_matrix(params, nu_r) @ nu_r
+        + buoyancy_wrench(params, rot, gravity)
+        + m_a @ nu_c_dot
+    )
+    tau_other = tau + fluid
+    rhs = tau_other + weight - coriolis_matrix(m_rb, nu) @ nu
+    # M_RB and M_A are diagonal, so the solve is a division.
+    acceleration = rhs / (jnp.diagonal(m_rb) + params.added_mass)
+    return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - params.added_mass * acceleration)
+
+
+def kinetic_energy(params: HydroParams, mass, inertia, nu_r: jnp.ndarray) -> jnp.ndarray:
+    """½ νᵀ M_RB ν + ½ ν_rᵀ M_A ν_r with ν = ν_r (no current), in J."""
+    return 0.5 * jnp.sum((jnp.concatenate([jnp.full((3,), mass), inertia]) + params.added_mass) * nu_r**2)
+
+
+def potential_energy(params: HydroParams, mass, position: jnp.ndarray, rot: jnp.ndarray, gravity) -> jnp.ndarray:
+    """Gravitational minus buoyant potential (J): m g z_CG − ρ g ∇ z_CB, world z up."""
+    z_cb = position[2] + rot[2, :] @ params.center_of_buoyancy
+    return mass * gravity * position[2] - params.fluid_density * gravity * params.volume * z_cb

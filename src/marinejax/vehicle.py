@@ -1,0 +1,214 @@
+"""Vehicles: an MJCF model plus its hydrodynamic and thruster parameters, loaded once.
+
+A vehicle is one MJCF file in `models/mjcf/` (installed as `marinejax/models/mjcf/`). Its
+`<custom>` section carries named parameter sets (`marinejax:<set>:<field>`) and the thruster
+settings (`marinejax:thruster:<field>`); its sites `thruster1..N` give each thruster's position and
+axis. Adding a vehicle means adding one file; no code change.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from importlib import resources
+from pathlib import Path
+
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from marinejax.hydro.params import HydroParams
+from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE, T200Curve, allocation_matrix, t200_curve
+
+_PREFIX = "marinejax:"
+_RIGID_FIELDS = {"mass": 1, "inertia": 3}
+_THRUSTER_SITE = re.compile(r"^thruster(\d+)$")
+
+
+def model_dir() -> Path:
+    """Folder holding the vehicle MJCF files: the installed package copy, else the source checkout's."""
+    installed = Path(str(resources.files("marinejax"))) / "models" / "mjcf"
+    if installed.is_dir():
+        return installed
+    checkout = Path(__file__).resolve().parents[2] / "models" / "mjcf"
+    if checkout.is_dir():
+        return checkout
+    raise FileNotFoundError(f"marinejax vehicle models not found in {installed} or {checkout}")
+
+
+def list_vehicles() -> list[str]:
+    """Names of the available vehicles (MJCF file stems), computed when asked."""
+    return sorted(p.stem for p in model_dir().glob("*.xml"))
+
+
+@struct.dataclass
+class ThrusterParams:
+    """Thruster model of a vehicle (pytree)."""
+
+    allocation: jnp.ndarray  # (6, N) body frame FLU: column i = [e_i; r_i × e_i] (m for the moment arm)
+    curve: T200Curve  # steady thrust table
+    gain: jnp.ndarray  # (N,) multiplicative thrust scale, 1 = nominal
+    time_constant: jnp.ndarray  # () s, first-order lag of the thrust; 0 = instantaneous
+    voltage: jnp.ndarray  # () supply voltage, V
+
+
+@struct.dataclass
+class VehicleSystem:
+    """Everything the jitted physics reads: the MJX model (rigid body, gravity, timestep) and the
+    fluid and thruster parameters. Indices are static Python ints, looked up once at load."""
+
+    model: mjx.Model
+    hydro: HydroParams
+    thrusters: ThrusterParams
+    body_id: int = struct.field(pytree_node=False)
+    qpos_adr: int = struct.field(pytree_node=False)
+    dof_adr: int = struct.field(pytree_node=False)
+
+    @property
+    def num_thrusters(self) -> int:
+        return self.thrusters.allocation.shape[1]
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Vehicle:
+    """A loaded vehicle: `sys` for jitted code, the CPU `mj_model` for rendering, and metadata."""
+
+    name: str
+    param_set: str
+    param_sets: tuple[str, ...]
+    source: str  # citation of the parameter set
+    mj_model: mujoco.MjModel
+    sys: VehicleSystem
+    thruster_names: tuple[str, ...]
+
+    @property
+    def num_thrusters(self) -> int:
+        return len(self.thruster_names)
+
+
+def _text(m: mujoco.MjModel, name: str) -> str | None:
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if i < 0:
+        return None
+    adr, size = m.text_adr[i], m.text_size[i]
+    return bytes(m.text_data[adr : adr + size - 1]).decode()
+
+
+def _numerics(m: mujoco.MjModel, prefix: str) -> dict[str, np.ndarray]:
+    out = {}
+    for i in range(m.nnumeric):
+        name = m.numeric(i).name
+        if name.startswith(prefix):
+            out[name[len(prefix) :]] = np.array(m.numeric(i).data, dtype=np.float64)
+    return out
+
+
+def _param_sets(m: mujoco.MjModel) -> list[str]:
+    sets = set()
+    for i in range(m.nnumeric):
+        parts = m.numeric(i).name.split(":")
+        if len(parts) == 3 and parts[0] + ":" == _PREFIX and parts[1] != "thruster":
+            sets.add(parts[1])
+    return sorted(sets)
+
+
+def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
+    """Load a vehicle by name (see `list_vehicles()`) or from an MJCF file path ending in .xml,
+    with its default or a named parameter set.
+
+    Raises ValueError naming the bad value and the valid choices for an unknown vehicle or
+    parameter set, and for missing, non-finite or unphysical parameters.
+    """
+    if str(name).endswith(".xml"):
+        path = Path(name)
+        if not path.is_file():
+            raise FileNotFoundError(f"vehicle model file not found: {path}")
+        name = path.stem
+    else:
+        names = list_vehicles()
+        if name not in names:
+            raise ValueError(f"unknown vehicle {name!r}; available vehicles: {names}")
+        path = model_dir() / f"{name}.xml"
+    m = mujoco.MjModel.from_xml_path(str(path))
+    where = f"vehicle {name!r} ({path.name})"
+
+    sets = _param_sets(m)
+    default = _text(m, _PREFIX + "default_set")
+    param_set = param_set or default
+    if param_set not in sets:
+        raise ValueError(f"{where}: unknown parameter set {param_set!r}; available: {sets}")
+    values = _numerics(m, f"{_PREFIX}{param_set}:")
+    rigid = {k: values.pop(k) for k in list(values) if k in _RIGID_FIELDS}
+    hydro = HydroParams.from_mapping(values, source=f"{where}, parameter set {param_set!r}")
+
+    if m.nbody != 2 or m.body_jntnum[1] != 1 or m.jnt_type[m.body_jntadr[1]] != mujoco.mjtJoint.mjJNT_FREE:
+        raise ValueError(f"{where}: expected exactly one body with one free joint")
+    body = 1
+    if not (np.allclose(m.body_ipos[body], 0) and np.allclose(m.body_iquat[body], [1, 0, 0, 0])):
+        raise ValueError(f"{where}: the body frame origin must be the centre of gravity with principal axes "
+                         f"(inertial pos 0 0 0, no rotation); got ipos {m.body_ipos[body]}, iquat {m.body_iquat[body]}")
+    if not np.allclose(m.opt.gravity[:2], 0) or m.opt.gravity[2] >= 0:
+        raise ValueError(f"{where}: gravity must point along world -z, got {m.opt.gravity}")
+    for field, size in _RIGID_FIELDS.items():
+        if field in rigid:
+            v = rigid[field]
+            if v.size != size or not np.all(np.isfinite(v)) or np.any(v <= 0):
+                raise ValueError(f"{where}, parameter set {param_set!r}: '{field}' must be {size} finite positive value(s), got {v.tolist()}")
+    if "mass" in rigid:
+        m.body_mass[body] = rigid["mass"][0]
+    if "inertia" in rigid:
+        m.body_inertia[body] = rigid["inertia"]
+
+    sites = {}
+    for i in range(m.nsite):
+        match = _THRUSTER_SITE.match(m.site(i).name)
+        if match:
+            sites[int(match.group(1))] = i
+    if not sites or sorted(sites) != list(range(1, len(sites) + 1)):
+        raise ValueError(f"{where}: thruster sites must be named thruster1..thrusterN, found {sorted(sites)}")
+    ids = [sites[k] for k in sorted(sites)]
+    if any(m.site_bodyid[i] != body for i in ids):
+        raise ValueError(f"{where}: every thruster site must belong to the vehicle body")
+    positions = np.array([m.site_pos[i] for i in ids])
+    directions = []
+    for i in ids:
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, m.site_quat[i])
+        directions.append(mat.reshape(3, 3)[:, 2])
+
+    thr = _numerics(m, _PREFIX + "thruster:")
+    model_name = _text(m, _PREFIX + "thruster:model")
+    if model_name != "T200":
+        raise ValueError(f"{where}: thruster model {model_name!r} is not supported; available: ['T200']")
+    tc = float(thr.get("time_constant", [np.nan])[0])
+    volt = float(thr.get("voltage", [np.nan])[0])
+    if not (np.isfinite(tc) and tc >= 0):
+        raise ValueError(f"{where}: marinejax:thruster:time_constant must be finite and >= 0 s, got {tc}")
+    if not (SUPPLY_VOLTAGE_RANGE[0] <= volt <= SUPPLY_VOLTAGE_RANGE[1]):
+        raise ValueError(f"{where}: marinejax:thruster:voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
+    thrusters = ThrusterParams(
+        allocation=jnp.asarray(allocation_matrix(positions, np.array(directions))),
+        curve=t200_curve(),
+        gain=jnp.ones(len(ids)),
+        time_constant=jnp.asarray(tc),
+        voltage=jnp.asarray(volt),
+    )
+    sys = VehicleSystem(
+        model=mjx.put_model(m),
+        hydro=hydro,
+        thrusters=thrusters,
+        body_id=body,
+        qpos_adr=int(m.jnt_qposadr[m.body_jntadr[body]]),
+        dof_adr=int(m.jnt_dofadr[m.body_jntadr[body]]),
+    )
+    return Vehicle(
+        name=name,
+        param_set=param_set,
+        param_sets=tuple(sets),
+        source=_text(m, f"{_PREFIX}{param_set}:source") or "",
+        mj_model=m,
+        sys=sys,
+        thruster_names=tuple(f"thruster{k}" for k in sorted(sites)),
+    )
