@@ -61,7 +61,8 @@ def _edited_model(tmp_path, pattern, replacement):
     return path
 
 
-def test_non_finite_parameter_in_a_model_file_is_rejected(tmp_path):
+def test_non_finite_parameter_in_a_model_file_is_rejected(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its NaN warning to MUJOCO_LOG.TXT in the working directory
     path = _edited_model(tmp_path, r'(vonbenzon2022:quadratic_damping" data=")141', r"\1nan")
     with pytest.raises(ValueError, match=r"edited_rov.*'quadratic_damping' has non-finite"):
         mj.load_vehicle(path)

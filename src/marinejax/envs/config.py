@@ -1,0 +1,81 @@
+"""Immutable env configs and validated overrides.
+
+Configs are frozen dataclasses (nested by topic). `apply_overrides(config, {"reward": {"effort": 0.1}})`
+or with dotted keys `{"reward.effort": 0.1}` returns a new config; an unknown key is an error
+listing the valid ones, and a value of the wrong kind is an error naming the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Mapping, TypeVar
+
+C = TypeVar("C")
+
+
+def _check_value(path: str, old: Any, new: Any) -> Any:
+    if dataclasses.is_dataclass(old):
+        if isinstance(new, Mapping):
+            return apply_overrides(old, new, prefix=path + ".")
+        if type(new) is type(old):
+            return new
+        raise ValueError(f"config '{path}' is a section; pass a mapping of its fields, got {new!r}")
+    if isinstance(old, bool):
+        if not isinstance(new, bool):
+            raise ValueError(f"config '{path}' must be true or false, got {new!r}")
+        return new
+    if isinstance(old, (int, float)) and not isinstance(old, bool):
+        if isinstance(new, bool) or not isinstance(new, (int, float)):
+            raise ValueError(f"config '{path}' must be a number, got {new!r}")
+        if not math.isfinite(new):
+            raise ValueError(f"config '{path}' must be finite, got {new!r}")
+        if isinstance(old, int) and not float(new).is_integer():
+            raise ValueError(f"config '{path}' must be an integer, got {new!r}")
+        return type(old)(new)
+    if isinstance(old, tuple):
+        if not isinstance(new, (tuple, list)) or len(new) != len(old):
+            raise ValueError(f"config '{path}' must be a sequence of {len(old)} values, got {new!r}")
+        return tuple(_check_value(f"{path}[{i}]", o, n) for i, (o, n) in enumerate(zip(old, new)))
+    if isinstance(old, str) or old is None:
+        if not (isinstance(new, str) or new is None):
+            raise ValueError(f"config '{path}' must be a string, got {new!r}")
+        return new
+    return new
+
+
+def apply_overrides(config: C, overrides: Mapping[str, Any], prefix: str = "") -> C:
+    """New config with `overrides` applied (nested mappings or dotted keys); validated."""
+    nested: dict[str, Any] = {}
+    for key, value in overrides.items():
+        head, _, rest = key.partition(".")
+        if rest:
+            sub = nested.setdefault(head, {})
+            if not isinstance(sub, dict):
+                raise ValueError(f"config '{prefix}{head}' given both as a value and as a section")
+            sub[rest] = value
+        else:
+            if isinstance(nested.get(head), dict) and not isinstance(value, Mapping):
+                raise ValueError(f"config '{prefix}{head}' given both as a value and as a section")
+            nested[head] = value
+    valid = [f.name for f in dataclasses.fields(config)]
+    changes = {}
+    for key, value in nested.items():
+        if key not in valid:
+            raise ValueError(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}")
+        changes[key] = _check_value(prefix + key, getattr(config, key), value)
+    return dataclasses.replace(config, **changes)
+
+
+def to_dict(config: Any) -> dict[str, Any]:
+    """Plain nested dict of a config (for logging and run directories)."""
+    return dataclasses.asdict(config)
+
+
+def check_range(name: str, value: tuple[float, float], low: float | None = None) -> None:
+    """Raise ValueError unless value is a finite (lo, hi) with lo <= hi (and lo >= low when given)."""
+    lo, hi = value
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+        raise ValueError(f"config '{name}' must be a finite range (low, high) with low <= high, got {value}")
+    if low is not None and lo < low:
+        raise ValueError(f"config '{name}' must not go below {low}, got {value}")

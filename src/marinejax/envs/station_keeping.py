@@ -1,0 +1,67 @@
+"""Station keeping: hold a position and heading drawn per episode.
+
+Target: position uniform in a box around (0, 0, −5) m (±`target_range` horizontally and vertically)
+and a yaw uniform in (−π, π]. The vehicle starts per `reset` around it.
+
+Observation (all in the body frame FLU unless stated), size 14 + number of actions:
+  [0:3]   position error, target − position, m
+  [3:6]   world up (0, 0, 1) expressed in the body frame (roll and pitch), unitless
+  [6:8]   sin, cos of the heading error (target yaw − yaw)
+  [8:11]  linear velocity, m/s
+  [11:14] angular velocity, rad/s
+  [14:]   last action
+Reward position term: 1/(1 + (d/position_scale)^2) (MarineGym's 0.5/(1 + (1.2 d)^2), rescaled to 1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from marinejax.envs.base import EnvConfig, MarineEnv
+from marinejax.frames import quat_to_mat
+from marinejax.physics import VehicleState
+
+
+@dataclasses.dataclass(frozen=True)
+class StationKeepingConfig(EnvConfig):
+    target_depth: float = -5.0  # m, world z of the box centre
+    target_range: float = 1.0  # m, target drawn in ±target_range per axis around (0, 0, target_depth)
+
+
+@struct.dataclass
+class StationTarget:
+    position: jnp.ndarray  # (3,) m, world
+    yaw: jnp.ndarray  # () rad
+
+
+class StationKeeping(MarineEnv):
+    config_class = StationKeepingConfig
+
+    def _sample_task(self, rng):
+        k1, k2 = jax.random.split(rng)
+        c = self.config
+        pos = jnp.array([0.0, 0.0, c.target_depth]) + jax.random.uniform(k1, (3,), minval=-c.target_range, maxval=c.target_range)
+        return StationTarget(position=pos, yaw=jax.random.uniform(k2, minval=-jnp.pi, maxval=jnp.pi))
+
+    def _initial_pose(self, rng, task: StationTarget) -> VehicleState:
+        return self._random_start(rng, task.position, task.yaw)
+
+    def _evaluate(self, vs: VehicleState, info, action):
+        task: StationTarget = info["task"]
+        rot = quat_to_mat(vs.quaternion)
+        err_world = task.position - vs.position
+        d = jnp.linalg.norm(err_world)
+        terms, errors, attitude = self._common_terms(vs, task.yaw, action, info["last_action"])
+        r = self.config.reward
+        terms = {
+            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
+            "precision": jnp.exp(-d / r.precision_scale),
+            **terms,
+        }
+        errors["position_error"] = d
+        obs = jnp.concatenate([rot.T @ err_world, attitude, action])
+        return obs, terms, errors

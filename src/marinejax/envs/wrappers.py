@@ -1,0 +1,66 @@
+"""Training wrappers: Brax's vmap / episode wrappers with a FULL reset on done.
+
+Brax's AutoResetWrapper restores the cached first state of each env slot, so targets, trajectories,
+currents and randomized physics would never change between episodes. `FullResetWrapper` calls the
+env's reset with a fresh key instead; `wrap_for_training` is the `wrap_env_fn` to give `ppo.train`.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Optional
+
+import jax
+import jax.numpy as jnp
+from brax.envs.base import Env, State, Wrapper
+from brax.envs.wrappers.training import DomainRandomizationVmapWrapper, EpisodeWrapper, VmapWrapper
+
+# Keys of State.info that describe the transition that just happened, kept through a reset.
+_TRANSITION_KEYS = ("truncation", "steps")
+
+
+class FullResetWrapper(Wrapper):
+    """Batched env: where an episode ended, start a new one with `reset` (new randomness)."""
+
+    def reset(self, rng: jax.Array) -> State:
+        state = self.env.reset(rng)
+        state.info["reset_rng"] = jax.vmap(lambda k: jax.random.fold_in(k, 1))(rng) if rng.ndim > 1 else jax.random.fold_in(rng, 1)
+        return state
+
+    def step(self, state: State, action: jax.Array) -> State:
+        if "steps" in state.info:
+            state.info["steps"] = jnp.where(state.done, jnp.zeros_like(state.info["steps"]), state.info["steps"])
+        keys = state.info["reset_rng"]
+        split = jax.vmap(jax.random.split)(keys) if keys.ndim > 1 else jax.random.split(keys)
+        next_keys, reset_keys = (split[:, 0], split[:, 1]) if keys.ndim > 1 else (split[0], split[1])
+        state = state.replace(info={k: v for k, v in state.info.items() if k != "reset_rng"})
+        stepped = self.env.step(state, action)
+        fresh = self.env.reset(reset_keys)
+        done = stepped.done
+
+        def pick(new, old):
+            d = jnp.reshape(done, done.shape + (1,) * (old.ndim - done.ndim))
+            return jnp.where(d, new, old)
+
+        info = dict(stepped.info)
+        for k, v in fresh.info.items():
+            if k not in _TRANSITION_KEYS and k in info:
+                info[k] = jax.tree.map(pick, v, info[k])
+        info["reset_rng"] = next_keys
+        return stepped.replace(
+            pipeline_state=jax.tree.map(pick, fresh.pipeline_state, stepped.pipeline_state),
+            obs=pick(fresh.obs, stepped.obs),
+            info=info,
+        )
+
+
+def wrap_for_training(
+    env: Env,
+    episode_length: int = 1000,
+    action_repeat: int = 1,
+    randomization_fn: Optional[Callable] = None,
+) -> Wrapper:
+    """Same signature as `brax.envs.training.wrap`, with `FullResetWrapper` instead of AutoReset:
+    pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`."""
+    env = VmapWrapper(env) if randomization_fn is None else DomainRandomizationVmapWrapper(env, randomization_fn)
+    env = EpisodeWrapper(env, episode_length, action_repeat)
+    return FullResetWrapper(env)

@@ -1,0 +1,244 @@
+"""Every registered env: jit/vmap, shapes, finiteness over full episodes, rewards, resets, randomness."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import marinejax as mj
+import marinejax.envs as E
+from marinejax.envs.current import CurrentConfig, sample_current, step_current
+from marinejax.physics import VehicleState
+
+
+def episode_fn(env):
+    """jit(vmap) of a full episode: per step obs, reward, done, and all metrics."""
+
+    def run(key, actions):
+        state = env.reset(key)
+
+        def body(s, a):
+            s = env.step(s, a)
+            return s, (s.obs, s.reward, s.done, s.metrics)
+
+        return jax.lax.scan(body, state, actions)
+
+    return jax.jit(jax.vmap(run))
+
+
+@pytest.mark.parametrize("name", E.list_envs())
+def test_env_runs_a_full_episode_finite_under_random_and_extreme_actions(name):
+    env = E.make(name)
+    n = env.config.episode_length
+    keys = jax.random.split(jax.random.PRNGKey(1), 4)
+    rand = jax.random.uniform(jax.random.PRNGKey(2), (2, n, env.action_size), minval=-1, maxval=1)
+    actions = jnp.concatenate([rand, jnp.ones((1, n, env.action_size)), -jnp.ones((1, n, env.action_size))])
+    final, (obs, reward, done, metrics) = episode_fn(env)(keys, actions)
+    assert obs.shape == (4, n, env.observation_size)
+    assert np.all(np.isfinite(np.asarray(obs))) and np.all(np.isfinite(np.asarray(reward)))
+    assert float(jnp.sum(metrics["nonfinite"])) == 0
+    for key in ("position_error", "heading_error_deg", "reward/position", "reward/effort"):
+        assert key in metrics
+    # the full-throttle vehicles leave the work area or at least move a lot
+    assert float(jnp.max(metrics["position_error"][2:])) > 0.5
+
+
+@pytest.fixture(scope="module")
+def sk():
+    return E.make("BlueROV2Heavy-StationKeeping")
+
+
+def at(position, yaw, n_thrusters=8, velocity=(0, 0, 0), angular_velocity=(0, 0, 0), roll=0.0):
+    return VehicleState(
+        position=jnp.asarray(position, jnp.float32),
+        quaternion=mj.frames.quat_from_euler(roll, 0.0, yaw),
+        velocity=jnp.asarray(velocity, jnp.float32),
+        angular_velocity=jnp.asarray(angular_velocity, jnp.float32),
+        thrust=jnp.zeros(n_thrusters),
+    )
+
+
+def test_station_reward_is_largest_at_zero_error(sk):
+    state = sk.reset(jax.random.PRNGKey(0))
+    task = state.info["task"]
+    zero = jnp.zeros(8)
+    evaluate = jax.jit(lambda vs, a: sk._evaluate(vs, state.info, a))
+
+    def reward(vs, a=zero):
+        _, terms, _ = evaluate(vs, a)
+        return sum(getattr(sk.config.reward, k) * float(v) for k, v in terms.items())
+
+    best = reward(at(task.position, task.yaw))
+    w = sk.config.reward
+    assert best == pytest.approx(w.position + w.precision + w.upright + w.heading, rel=1e-5)
+    worse = [
+        at(task.position + jnp.array([0.05, 0, 0]), task.yaw),
+        at(task.position, task.yaw + 0.2),
+        at(task.position, task.yaw, roll=0.2),
+        at(task.position, task.yaw, angular_velocity=(0, 0, 0.3)),
+    ]
+    for vs in worse:
+        assert reward(vs) < best
+    assert reward(at(task.position, task.yaw), jnp.full(8, 0.5)) < best
+
+
+def test_station_reward_terms_follow_their_formulas(sk):
+    state = sk.reset(jax.random.PRNGKey(0))
+    task = state.info["task"]
+    d = 0.5
+    obs, terms, errors = sk._evaluate(at(task.position + jnp.array([0.0, d, 0.0]), task.yaw + 0.3), state.info, jnp.full(8, 0.5))
+    w = sk.config.reward
+    assert float(errors["position_error"]) == pytest.approx(d, rel=1e-5)
+    assert float(terms["position"]) == pytest.approx(1 / (1 + (d / w.position_scale) ** 2), rel=1e-5)
+    assert float(terms["precision"]) == pytest.approx(math.exp(-d / w.precision_scale), rel=1e-4)
+    assert float(terms["heading"]) == pytest.approx((1 + math.cos(0.3)) / 2, rel=1e-5)
+    assert float(errors["heading_error_deg"]) == pytest.approx(math.degrees(0.3), rel=1e-4)
+    assert float(terms["effort"]) == pytest.approx(-0.25, rel=1e-6)
+    assert float(terms["smoothness"]) == pytest.approx(-0.25, rel=1e-6)  # last action was zero
+    # observation: position error in the body frame; the target is d to the world +y of the vehicle
+    yaw = float(task.yaw) + 0.3
+    np.testing.assert_allclose(obs[:3], [d * math.sin(yaw) * -1, d * math.cos(yaw) * -1, 0.0], atol=1e-5)
+
+
+@pytest.fixture(scope="module")
+def sk_vmapped(sk):
+    return jax.jit(jax.vmap(sk.reset)), jax.jit(jax.vmap(sk.step))
+
+
+def test_same_seed_same_episode_different_seed_different(sk, sk_vmapped):
+    reset, step = sk_vmapped
+    keys = jnp.stack([jax.random.PRNGKey(5), jax.random.PRNGKey(5), jax.random.PRNGKey(6)])
+    s = reset(keys)
+    a = jnp.full((3, 8), 0.2)
+    for _ in range(3):
+        s = step(s, a)
+    np.testing.assert_array_equal(np.asarray(s.obs[0]), np.asarray(s.obs[1]))
+    assert not np.allclose(np.asarray(s.obs[0]), np.asarray(s.obs[2]))
+    assert not np.allclose(np.asarray(s.info["task"].position[0]), np.asarray(s.info["task"].position[2]))
+
+
+def test_training_wrapper_redraws_every_episode(sk):
+    env = E.wrap_for_training(sk, episode_length=4)
+    reset, step = jax.jit(env.reset), jax.jit(env.step)
+    s = reset(jax.random.split(jax.random.PRNGKey(0), 2))
+    targets = [np.asarray(s.info["task"].position)]
+    truncations = []
+    for _ in range(12):
+        s = step(s, jnp.zeros((2, 8)))
+        truncations.append(np.asarray(s.info["truncation"]))
+        targets.append(np.asarray(s.info["task"].position))
+    # an episode ends every 4 steps, truncated (bootstrappable), and the new one has a new target
+    assert [int(t[0]) for t in truncations] == [0, 0, 0, 1] * 3
+    episode_targets = [targets[0], targets[4], targets[8], targets[12]]
+    for a, b in zip(episode_targets, episode_targets[1:]):
+        assert not np.allclose(a, b)
+    np.testing.assert_array_equal(targets[1], targets[3])  # constant within an episode
+    assert int(s.info["steps"][0]) == 4 or int(s.info["steps"][0]) == 0
+
+
+def test_domain_randomization_changes_parameters_and_dynamics():
+    still = {"velocity": 0.0, "angular_velocity": 0.0, "tilt": 0.0}
+    env = E.make("BlueROV2Heavy-StationKeeping", randomization={"enabled": True, "net_buoyancy": (-3.0, 3.0)}, reset=still)
+    nominal = E.make("BlueROV2Heavy-StationKeeping")
+    keys = jax.random.split(jax.random.PRNGKey(3), 16)
+    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    s = reset(keys)
+    dyn = s.info["dynamics"]
+    assert np.std(np.asarray(dyn.mass)) > 0.1 and np.std(np.asarray(dyn.hydro.added_mass[:, 2])) > 0.5
+    assert np.std(np.asarray(dyn.voltage)) > 0.3
+    s_nom = jax.jit(jax.vmap(nominal.reset))(keys)
+    np.testing.assert_allclose(np.asarray(s_nom.info["dynamics"].mass), 13.5, rtol=1e-6)
+    # passive sinking: the heavier (net weight W - B) a vehicle, the faster it sinks
+    z0 = np.asarray(s.pipeline_state.data.qpos[:, 2])
+    for _ in range(20):
+        s = step(s, jnp.zeros((16, 8)))
+    sink = z0 - np.asarray(s.pipeline_state.data.qpos[:, 2])
+    g = 9.81
+    net_weight = np.asarray(dyn.mass) * g - np.asarray(dyn.hydro.fluid_density * g * dyn.hydro.volume)
+    assert np.corrcoef(net_weight, sink)[0, 1] > 0.9
+
+
+def test_brax_randomization_fn_gives_each_slot_its_own_physics(sk):
+    fn = E.brax_randomization_fn(E.RandomizationConfig(enabled=True))
+    keys = jax.random.split(jax.random.PRNGKey(0), 4)
+    env = E.wrap_for_training(sk, episode_length=10, randomization_fn=lambda sys: fn(sys, rng=keys))
+    s = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
+    masses = np.asarray(s.info["dynamics"].mass)
+    assert len(set(np.round(masses, 5))) == 4
+    s = jax.jit(env.step)(s, jnp.zeros((4, 8)))
+    assert np.all(np.isfinite(np.asarray(s.obs)))
+
+
+def test_passive_vehicle_drifts_with_the_current():
+    env = E.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant", "speed": (0.2, 0.3), "max_elevation_deg": 0.0},
+                 reset={"velocity": 0.0, "angular_velocity": 0.0, "tilt": 0.0})
+    keys = jax.random.split(jax.random.PRNGKey(4), 4)
+    reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
+    s = reset(keys)
+    current = np.asarray(s.info["current"].value)
+    assert np.all(np.linalg.norm(current, axis=1) >= 0.2)
+    p0 = np.asarray(s.pipeline_state.data.qpos[:, :3])
+    for _ in range(200):  # 10 s
+        s = step(s, jnp.zeros((4, 8)))
+    v_world = np.asarray(s.pipeline_state.data.qvel[:, :2])
+    np.testing.assert_allclose(v_world, current[:, :2], atol=0.03)
+    drift = np.asarray(s.pipeline_state.data.qpos[:, :2]) - p0[:, :2]
+    cos = np.sum(drift * current[:, :2], 1) / np.linalg.norm(drift, axis=1) / np.linalg.norm(current[:, :2], axis=1)
+    assert np.all(cos > 0.99)
+
+
+def test_ou_current_has_configured_mean_and_variance():
+    cfg = CurrentConfig(mode="ou", speed=(0.2, 0.2), ou_rate=0.5, ou_sigma=0.05)
+    state = jax.vmap(lambda k: sample_current(k, cfg))(jax.random.split(jax.random.PRNGKey(0), 2000))
+
+    def run(state, key):
+        def body(s, k):
+            s = step_current(s, k, 0.05, cfg)
+            return s, s.value
+
+        return jax.lax.scan(body, state, jax.random.split(key, 400))[1]
+
+    values = jax.jit(jax.vmap(run))(state, jax.random.split(jax.random.PRNGKey(1), 2000))  # (2000, 400, 3)
+    dev = np.asarray(values[:, -1] - state.mean)  # after 20 s = 10 / rate: stationary
+    assert np.abs(dev.mean(0)).max() < 0.005
+    np.testing.assert_allclose(dev.std(0), 0.05, rtol=0.08)
+    # and it reverts: the lag-20 (1 s) autocorrelation is exp(-rate * 1 s)
+    a, b = np.asarray(values[:, 200] - state.mean), np.asarray(values[:, 220] - state.mean)
+    assert np.mean(a * b) / np.mean(a * a) == pytest.approx(math.exp(-0.5), abs=0.05)
+
+
+def test_unknown_names_and_keys_list_the_choices():
+    with pytest.raises(ValueError, match=r"unknown env 'BlueROV2Heavy-Hover'; registered envs: \[.*'BlueROV2Heavy-StationKeeping'"):
+        E.make("BlueROV2Heavy-Hover")
+    with pytest.raises(ValueError, match=r"unknown config key 'episode_lenght'; valid keys: \[.*'episode_length'"):
+        E.make("BlueROV2Heavy-StationKeeping", episode_lenght=10)
+    with pytest.raises(ValueError, match=r"unknown config key 'reward.efort'; valid keys of reward: \[.*'effort'"):
+        E.make("BlueROV2Heavy-StationKeeping", reward={"efort": 1.0})
+    with pytest.raises(ValueError, match=r"current.mode' must be one of \['off', 'constant', 'ou'\]"):
+        E.make("BlueROV2Heavy-StationKeeping", current={"mode": "strong"})
+    with pytest.raises(ValueError, match=r"'control_dt' must be a number"):
+        E.make("BlueROV2Heavy-StationKeeping", control_dt="fast")
+
+
+def test_wrong_action_shape_is_an_error(sk):
+    s = sk.reset(jax.random.PRNGKey(0))
+    with pytest.raises(ValueError, match=r"action must have shape \(8,\).*got \(6,\)"):
+        sk.step(s, jnp.zeros(6))
+
+
+def test_default_configs_are_immutable_values():
+    c = E.get_default_config("BlueROV2Heavy-CircleTracking")
+    with pytest.raises(Exception):
+        c.episode_length = 5
+    assert E.get_default_config("BlueROV2Heavy-CircleTracking") == c
+    env = E.make("BlueROV2Heavy-CircleTracking", episode_length=50)
+    assert env.config.episode_length == 50 and E.get_default_config("BlueROV2Heavy-CircleTracking").episode_length == 400
+
+
+def test_brax_registry_builds_our_envs():
+    from brax import envs as brax_envs
+
+    env = brax_envs.get_environment("BlueROV2-StationKeeping", episode_length=20)
+    assert env.action_size == 6 and env.config.episode_length == 20
