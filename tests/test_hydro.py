@@ -127,3 +127,13 @@ def test_unknown_parameter_field_is_rejected():
     values = {k: np.asarray(getattr(good, k)) for k in ("added_mass", "linear_damping", "quadratic_damping", "volume", "fluid_density", "center_of_buoyancy")}
     with pytest.raises(ValueError, match=r"unknown hydrodynamic field\(s\) \['added_mas'\]"):
         HydroParams.from_mapping({**values, "added_mas": 1.0})
+
+
+def test_diagonal_coriolis_force_equals_the_m2c_matrix_form(vehicle):
+    from marinejax.hydro import coriolis_force_diagonal
+
+    nus = jax.random.normal(jax.random.PRNGKey(1), (20, 6))
+    for m in mass_matrices(vehicle):
+        fast = jax.vmap(lambda nu: coriolis_force_diagonal(jnp.diagonal(m), nu))(nus)
+        full = jax.vmap(lambda nu: coriolis_matrix(m, nu) @ nu)(nus)
+        np.testing.assert_allclose(fast, full, rtol=1e-5, atol=1e-5)  # float32 round-off on terms of ~3

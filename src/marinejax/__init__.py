@@ -1,5 +1,11 @@
-"""marinejax: underwater vehicles in JAX and MuJoCo MJX, with Fossen hydrodynamics."""
+"""marinejax: underwater vehicles in JAX and MuJoCo MJX, with Fossen hydrodynamics.
 
+Layers, each importing only those before it: vehicle (MJCF + parameters) → hydro (forces) →
+physics (MJX step, rollout) → envs (tasks, wrappers, Gymnasium adapter) → train (PPO, CLI).
+"""
+
+from marinejax.envs import get_default_config, list_envs, make
+from marinejax.envs.gym_adapter import register_gymnasium_envs
 from marinejax.physics import (
     PhysicsState,
     SimulationDiverged,
@@ -21,8 +27,14 @@ __all__ = [
     "VehicleState",
     "VehicleSystem",
     "control_step",
+    "get_default_config",
     "initial_state",
+    "list_envs",
     "list_vehicles",
     "load_vehicle",
+    "make",
     "rollout",
 ]
+
+# Every env is also a Gymnasium id, "marinejax/<name>-v0" (gymnasium.make / make_vec).
+register_gymnasium_envs()

@@ -1,15 +1,48 @@
-"""The `marinejax` command line: `marinejax validate`, `marinejax bench physics`."""
+"""The `marinejax` command line.
+
+    marinejax train ENV [--timesteps N] [--ppo KEY=VALUE ...] [--env KEY=VALUE ...] [--run-dir DIR]
+    marinejax train --resume RUN_DIR
+    marinejax eval RUN_DIR_OR_CHECKPOINT [--episodes N] [--env KEY=VALUE ...] [--randomize] [--current MODE]
+    marinejax validate [--vehicle NAME] [--param-set SET] [--dt S]
+    marinejax bench physics|envs [flags]
+"""
 
 from __future__ import annotations
 
 import argparse
+import ast
+import json
 import sys
+import time
+from pathlib import Path
+from typing import Any
+
+
+class UserError(Exception):
+    """A mistake in what the user asked for: reported in one line, exit code 2, no traceback."""
+
+
+def _key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
+    """Parse KEY=VALUE strings; VALUE is a Python literal (number, bool, tuple, string) or a bare string."""
+    out = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise UserError(f"{flag} expects KEY=VALUE, got {item!r}")
+        try:
+            value = ast.literal_eval(raw)
+        except (ValueError, SyntaxError):
+            value = raw
+        out[key.strip()] = value
+    return out
 
 
 def _validate(args: argparse.Namespace) -> int:
     from marinejax.validation import print_validation
     from marinejax.vehicle import load_vehicle
 
+    if not (0 < args.dt <= 0.05):
+        raise UserError(f"--dt must be in (0, 0.05] s, got {args.dt}")
     vehicle = load_vehicle(args.vehicle, param_set=args.param_set)
     rows = print_validation(vehicle, dt=args.dt)
     worst = max(abs(m - e) / abs(e) for _, m, e, _ in rows)
@@ -17,34 +50,152 @@ def _validate(args: argparse.Namespace) -> int:
     return 0 if worst < 0.03 else 1
 
 
+def _train(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from marinejax.train.hyperparams import tuned_config, with_overrides
+    from marinejax.train.progress import TrainingProgress
+    from marinejax.train.runner import load_train_config, train
+
+    console = Console()
+    if args.resume:
+        if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir:
+            raise UserError("--resume takes only the run directory: the run's own settings are reused")
+        run_dir = Path(args.resume)
+        if not (run_dir / "config.json").exists():
+            raise UserError(f"--resume: {run_dir} is not a run directory (no config.json)")
+        config = load_train_config(run_dir)
+    else:
+        if not args.env_name:
+            raise UserError("name the env to train, e.g. `marinejax train BlueROV2Heavy-StationKeeping` (or --resume RUN_DIR)")
+        ppo = _key_values(args.ppo, "--ppo")
+        if args.timesteps is not None:
+            ppo["num_timesteps"] = args.timesteps
+        if args.seed is not None:
+            ppo["seed"] = args.seed
+        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=_key_values(args.env, "--env"))
+        from marinejax.train.runner import build_env
+
+        build_env(config)  # validate the env overrides before creating a run directory
+        run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.env}-{time.strftime('%Y%m%d-%H%M%S')}"
+        if (run_dir / "config.json").exists():
+            raise UserError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it")
+    console.print(f"[bold]marinejax train[/bold] {config.env} → {run_dir}  ({config.ppo.num_timesteps:,} env steps, "
+                  f"{config.ppo.num_envs} envs; compiling takes about a minute)")
+    with TrainingProgress(console, config) as progress:
+        try:
+            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update, randomize=args.randomize)
+        except KeyboardInterrupt:
+            console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
+                          f"continue with `marinejax train --resume {run_dir}`")
+            return 130
+    from marinejax.train.curves import plot_learning_curve
+
+    plot_learning_curve(run_dir)
+    if not args.no_eval:
+        from marinejax.train.evaluate import evaluate_run
+
+        console.print("final evaluation (deterministic policy) ...")
+        result = evaluate_run(run_dir, episodes=args.episodes, video=not args.no_video)
+        summary["evaluation"] = result
+        (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+        _print_eval(console, result)
+    console.print(f"run directory: {run_dir} (config.json, metrics.jsonl, checkpoints/, curve.png, summary.json, eval/)")
+    return 0
+
+
+def _print_eval(console, result: dict[str, Any]) -> None:
+    console.print(
+        f"{result['env']}: {result['episodes']} episodes, position error ({result['window']}): "
+        f"mean {result['position_error_mean_m']:.4f} m, median {result['position_error_median_m']:.4f} m, "
+        f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m) "
+        f"{100 * result['success_rate']:.0f} %"
+    )
+    for key in ("plot", "video", "video_error"):
+        if key in result:
+            console.print(f"  {key.replace('_', ' ')}: {result[key]}")
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from rich.console import Console
+
+    from marinejax.train.evaluate import evaluate_run
+
+    overrides = _key_values(args.env, "--env")
+    if args.randomize:
+        overrides["randomization.enabled"] = True
+    if args.current:
+        overrides["current.mode"] = args.current
+    if args.episodes < 1:
+        raise UserError(f"--episodes must be >= 1, got {args.episodes}")
+    result = evaluate_run(Path(args.path), out_dir=args.out, episodes=args.episodes, seed=args.seed,
+                          env_overrides=overrides, video=not args.no_video)
+    _print_eval(Console(), result)
+    return 0
+
+
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     if args.what == "physics":
         from marinejax.benchmarks.physics import main as bench_main
+    else:
+        from marinejax.benchmarks.envs import main as bench_main
+    return bench_main(rest)
 
-        return bench_main(rest)
-    raise AssertionError(args.what)
 
-
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="marinejax", description="Underwater vehicles in JAX + MuJoCo MJX.")
     sub = parser.add_subparsers(dest="command", required=True)
-    val = sub.add_parser("validate", help="simulate force steps and a roll oscillation; print them against closed-form values")
+
+    tr = sub.add_parser("train", help="train an env with PPO (tuned defaults per task)")
+    tr.add_argument("env_name", nargs="?", help="env name, e.g. BlueROV2Heavy-StationKeeping (see marinejax.list_envs())")
+    tr.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run from its newest checkpoint")
+    tr.add_argument("--run-dir", help="where to write the run (default runs/<ENV>-<time>)")
+    tr.add_argument("--timesteps", type=int, help="total env steps (overrides the tuned num_timesteps)")
+    tr.add_argument("--seed", type=int, help="random seed")
+    tr.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting, e.g. --ppo learning_rate=1e-3")
+    tr.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting, e.g. --env reward.effort=0.1")
+    tr.add_argument("--randomize", action="store_true", help="Brax per-env-slot domain randomization during training")
+    tr.add_argument("--episodes", type=int, default=64, help="episodes of the final evaluation (default 64)")
+    tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
+    tr.add_argument("--no-video", action="store_true", help="skip the video of the final evaluation")
+
+    ev = sub.add_parser("eval", help="evaluate a run directory or checkpoint: statistics, path plot, video")
+    ev.add_argument("path", help="run directory (its newest checkpoint) or a checkpoint directory")
+    ev.add_argument("--episodes", type=int, default=64, help="number of episodes (default 64)")
+    ev.add_argument("--seed", type=int, default=12345, help="seed of the evaluation episodes")
+    ev.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for the evaluation")
+    ev.add_argument("--randomize", action="store_true", help="evaluate with per-episode domain randomization")
+    ev.add_argument("--current", choices=["off", "constant", "ou"], help="evaluate in an ocean current")
+    ev.add_argument("--out", type=Path, help="output directory (default RUN_DIR/eval)")
+    ev.add_argument("--no-video", action="store_true", help="skip the video")
+
+    val = sub.add_parser("validate", help="simulate force steps and a roll swing; print them against closed-form values")
     val.add_argument("--vehicle", default="bluerov2_heavy", help="vehicle name (see marinejax.list_vehicles())")
     val.add_argument("--param-set", default=None, help="named parameter set of the vehicle (default: the vehicle's default)")
     val.add_argument("--dt", type=float, default=0.01, help="physics step in seconds (default 0.01)")
-    bench = sub.add_parser("bench", help="benchmarks; extra flags go to the benchmark (see `marinejax bench physics -h`)")
-    bench.add_argument("what", choices=["physics"])
+
+    bench = sub.add_parser("bench", add_help=False, help="benchmarks: `marinejax bench physics|envs [flags]` (-h for their flags)")
+    bench.add_argument("what", choices=["physics", "envs"])
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
     args, rest = parser.parse_known_args(argv)
     if args.command != "bench" and rest:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
+    from marinejax.train.evaluate import CheckpointError
+
     try:
+        if args.command == "train":
+            return _train(args)
+        if args.command == "eval":
+            return _eval(args)
         if args.command == "validate":
-            if not (0 < args.dt <= 0.05):
-                parser.error(f"--dt must be in (0, 0.05] s, got {args.dt}")
             return _validate(args)
         return _bench(args, rest)
-    except (ValueError, FileNotFoundError) as err:
-        print(f"marinejax: error: {err}", file=sys.stderr)
+    except (UserError, ValueError, FileNotFoundError, CheckpointError) as err:
+        print(f"marinejax {args.command}: error: {err}", file=sys.stderr)
         return 2
 
 

@@ -24,7 +24,7 @@ from marinejax.envs.config import check_range
 from marinejax.envs.current import CurrentConfig, sample_current, step_current
 from marinejax.envs.randomization import RandomizationConfig, apply_dynamics, nominal_dynamics, sample_dynamics
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
-from marinejax.physics import COMMAND_MODES, PhysicsState, VehicleState, control_step, from_physics, to_physics, with_timestep
+from marinejax.physics import COMMAND_MODES, VehicleState, control_step, from_physics, to_physics, with_timestep
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -221,6 +221,10 @@ class MarineEnv(Env):
         )
 
     # --- task hooks ---------------------------------------------------------------------
+    def target_position(self, info: dict) -> jnp.ndarray:
+        """Where the vehicle should be now (m, world): the station or the reference point at info['time']."""
+        raise NotImplementedError
+
     def _sample_task(self, rng: jax.Array) -> Any:
         raise NotImplementedError
 
@@ -231,5 +235,3 @@ class MarineEnv(Env):
         """(observation, unweighted reward terms, error metrics) at the state `vs` (time info['time'])."""
         raise NotImplementedError
 
-
-PhysicsState  # re-exported for type hints of State.pipeline_state

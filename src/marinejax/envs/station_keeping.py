@@ -47,6 +47,9 @@ class StationKeeping(MarineEnv):
         pos = jnp.array([0.0, 0.0, c.target_depth]) + jax.random.uniform(k1, (3,), minval=-c.target_range, maxval=c.target_range)
         return StationTarget(position=pos, yaw=jax.random.uniform(k2, minval=-jnp.pi, maxval=jnp.pi))
 
+    def target_position(self, info) -> jnp.ndarray:
+        return info["task"].position
+
     def _initial_pose(self, rng, task: StationTarget) -> VehicleState:
         return self._random_start(rng, task.position, task.yaw)
 

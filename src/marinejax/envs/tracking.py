@@ -66,6 +66,9 @@ class Tracking(MarineEnv):
             yaw=jax.random.uniform(k2, minval=-jnp.pi, maxval=jnp.pi),
         )
 
+    def target_position(self, info) -> jnp.ndarray:
+        return reference(self.kind, info["task"].trajectory, info["time"])[0]
+
     def _initial_pose(self, rng, task: TrackingTask) -> VehicleState:
         start, _ = reference(self.kind, task.trajectory, jnp.zeros(()))
         return self._random_start(rng, start, task.yaw)

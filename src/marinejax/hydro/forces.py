@@ -51,6 +51,14 @@ def coriolis_matrix(mass_matrix: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
     return jnp.block([[jnp.zeros((3, 3)), -sa], [-sa, -sb]])
 
 
+def coriolis_force_diagonal(mass_diag: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
+    """C(ν)ν (6,) for a diagonal mass matrix diag(mass_diag), without forming C: with a = M11 v,
+    b = M22 ω, C(ν)ν = [ω × a, v × a + ω × b]. Equal to coriolis_matrix(diag(mass_diag), ν) @ ν."""
+    v, w = nu[:3], nu[3:]
+    a, b = mass_diag[:3] * v, mass_diag[3:] * w
+    return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
+
+
 def damping_matrix(params: HydroParams, nu_r: jnp.ndarray) -> jnp.ndarray:
     """D(ν_r) = D_L + diag(D_Q ⊙ |ν_r|) (6, 6); D(ν_r) ν_r is the drag magnitude (opposes motion)."""
     return jnp.diag(params.linear_damping + params.quadratic_damping * jnp.abs(nu_r))
@@ -102,19 +110,20 @@ def hydro_terms(
     """
     nu_c, nu_c_dot = current_in_body(rot, current_world, nu[3:])
     nu_r = nu - nu_c
-    m_a = added_mass_matrix(params)
-    m_rb = rigid_body_mass_matrix(mass, inertia)
+    # M_RB and M_A are diagonal (CG at the origin, principal axes; diagonal added mass), so the
+    # Coriolis terms are cross products and the solve is a division.
+    m_a = params.added_mass
+    m_rb = jnp.concatenate([jnp.full((3,), mass), inertia])
     weight = jnp.concatenate([-mass * gravity * rot[2, :], jnp.zeros(3)])
     fluid = (
-        -coriolis_matrix(m_a, nu_r) @ nu_r
-        - damping_matrix(params, nu_r) @ nu_r
+        -coriolis_force_diagonal(m_a, nu_r)
+        - (params.linear_damping + params.quadratic_damping * jnp.abs(nu_r)) * nu_r
         + buoyancy_wrench(params, rot, gravity)
-        + m_a @ nu_c_dot
+        + m_a * nu_c_dot
     )
     tau_other = tau + fluid
-    rhs = tau_other + weight - coriolis_matrix(m_rb, nu) @ nu
-    # M_RB and M_A are diagonal, so the solve is a division.
-    acceleration = rhs / (jnp.diagonal(m_rb) + params.added_mass)
+    rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
+    acceleration = rhs / (m_rb + m_a)
     return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - params.added_mass * acceleration)
 
 

@@ -1,0 +1,1 @@
+"""Benchmarks of marinejax (run them with `marinejax bench <name>`)."""

@@ -1,0 +1,1 @@
+"""PPO training of marinejax tasks (Brax PPO), with tuned hyperparameters per task."""

@@ -1,0 +1,37 @@
+"""Learning-curve PNG of a run directory (from metrics.jsonl)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def plot_learning_curve(run_dir: Path) -> Path:
+    """curve.png: evaluation return and mean position error against env steps and wall time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    run_dir = Path(run_dir)
+    records = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines() if line.strip()]
+    records = [r for r in records if "eval/episode_reward" in r]
+    steps = [r["step"] for r in records]
+    minutes = [r["elapsed"] / 60 for r in records]
+    ret = [r["eval/episode_reward"] for r in records]
+    err = [r["eval/episode_position_error"] / max(r.get("eval/avg_episode_length", 1.0), 1.0) for r in records]
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharey="row")
+    for col, (x, label) in enumerate([(steps, "env steps"), (minutes, "wall time (min, compilation included)")]):
+        axes[0, col].plot(x, ret, "o-", ms=3)
+        axes[1, col].plot(x, err, "o-", ms=3, color="C3")
+        axes[1, col].set_yscale("log")
+        axes[1, col].set_xlabel(label)
+    axes[0, 0].set_ylabel("evaluation return")
+    axes[1, 0].set_ylabel("mean position error (m)\n(over evaluation episodes)")
+    config = json.loads((run_dir / "config.json").read_text())
+    fig.suptitle(f"{config['env']}: {run_dir.name}")
+    fig.tight_layout()
+    out = run_dir / "curve.png"
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return out

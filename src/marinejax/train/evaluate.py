@@ -1,0 +1,206 @@
+"""Deterministic evaluation of a trained policy: statistics, path plot and video.
+
+Error statistics use, per episode, the mean position error over the last second (station keeping)
+or after the first 2 s (tracking, once the reference has ramped up), then report the mean, median
+and 95th percentile over episodes, and the success rate (that per-episode error below `success_m`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from marinejax.envs.base import MarineEnv
+from marinejax.envs.station_keeping import StationKeeping
+from marinejax.train.hyperparams import TrainConfig
+
+SUCCESS_M = 0.1  # m: an episode succeeds when its evaluated mean position error is below this
+
+
+class CheckpointError(ValueError):
+    """A checkpoint or run directory that cannot be used (missing, incomplete or corrupt)."""
+
+
+def resolve_checkpoint(path: Path) -> tuple[Path, Path]:
+    """(run directory, checkpoint step directory) for a run directory or a checkpoint directory."""
+    from marinejax.train.runner import CHECKPOINTS, latest_checkpoint
+
+    path = Path(path)
+    if not path.exists():
+        raise CheckpointError(f"no such run directory or checkpoint: {path}")
+    if (path / "config.json").exists():
+        ckpt = latest_checkpoint(path)
+        if ckpt is None:
+            raise CheckpointError(f"run directory {path} has no complete checkpoint in {path / CHECKPOINTS}")
+        return path, ckpt
+    if path.parent.name == CHECKPOINTS and (path.parent.parent / "config.json").exists():
+        return path.parent.parent, path
+    raise CheckpointError(f"{path} is neither a run directory (with config.json) nor a checkpoint inside one")
+
+
+def load_policy(path: Path, env_overrides: dict[str, Any] | None = None):
+    """(train config, env, deterministic policy fn obs -> action, checkpoint dir) from a run or checkpoint."""
+    from brax.training import types
+    from brax.training.acme import running_statistics
+    from brax.training.agents.ppo import checkpoint as ppo_checkpoint
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    from marinejax.train.runner import build_env, load_train_config, network_factory
+
+    run_dir, ckpt = resolve_checkpoint(path)
+    try:
+        config = load_train_config(run_dir)
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise CheckpointError(f"cannot read {run_dir / 'config.json'}: {err}") from None
+    if env_overrides:
+        config = TrainConfig(env=config.env, ppo=config.ppo, env_overrides={**config.env_overrides, **env_overrides})
+    env = build_env(config)
+    try:
+        net_config = json.loads((ckpt / "ppo_network_config.json").read_text())
+        params = ppo_checkpoint.load(ckpt)
+    except Exception as err:  # orbax raises many kinds of errors on damaged files
+        raise CheckpointError(f"checkpoint {ckpt} could not be read: {type(err).__name__}: {err}") from None
+    if net_config.get("observation_size") != env.observation_size or net_config.get("action_size") != env.action_size:
+        raise CheckpointError(
+            f"checkpoint {ckpt} expects observations of size {net_config.get('observation_size')} and actions of size "
+            f"{net_config.get('action_size')}; env {config.env} has {env.observation_size} and {env.action_size}"
+        )
+    # Brax 0.14's checkpoint.load_policy cannot rebuild networks it saved itself; build it as ppo.train does.
+    normalize = running_statistics.normalize if config.ppo.normalize_observations else types.identity_observation_preprocessor
+    network = network_factory(config.ppo)(env.observation_size, env.action_size, preprocess_observations_fn=normalize)
+    inference = ppo_networks.make_inference_fn(network)(params, deterministic=True)
+    return config, env, (lambda obs: inference(obs, jax.random.PRNGKey(0))[0]), ckpt
+
+
+def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict[str, np.ndarray]:
+    """Run `episodes` full episodes (episode_length steps, no early reset) in one jitted call.
+
+    Returns arrays: time (T,), position (E, T, 3), target (E, T, 3), error (E, T), qpos (E, T, 7),
+    done (E, T), heading_error_deg (E, T).
+    """
+    steps = env.config.episode_length
+
+    def episode(key):
+        state = env.reset(key)
+
+        def body(s, _):
+            s = env.step(s, policy(s.obs))
+            q = s.pipeline_state.data.qpos
+            out = (q[:3], env.target_position(s.info), s.metrics["position_error"], q, s.done, s.metrics["heading_error_deg"])
+            return s, out
+
+        return jax.lax.scan(body, state, None, length=steps)[1]
+
+    keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
+    pos, target, err, qpos, done, head = jax.jit(jax.vmap(episode))(keys)
+    to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
+    return {
+        "time": env.config.control_dt * np.arange(1, steps + 1),
+        "position": to_np(pos), "target": to_np(target), "error": to_np(err),
+        "qpos": to_np(qpos), "done": to_np(done), "heading_error_deg": to_np(head),
+    }
+
+
+def error_window(env: MarineEnv, time: np.ndarray) -> np.ndarray:
+    """Boolean mask of the time steps the statistics use."""
+    if isinstance(env, StationKeeping):
+        return time > time[-1] - 1.0 + 1e-9
+    return time > 2.0 + 1e-9
+
+
+def summarize(env: MarineEnv, result: dict[str, np.ndarray], success_m: float = SUCCESS_M) -> dict[str, Any]:
+    mask = error_window(env, result["time"])
+    per_episode = result["error"][:, mask].mean(axis=1)
+    ended = result["done"].max(axis=1) > 0
+    return {
+        "episodes": int(per_episode.size),
+        "window": "last 1 s of each episode" if isinstance(env, StationKeeping) else "after the first 2 s",
+        "position_error_mean_m": float(per_episode.mean()),
+        "position_error_median_m": float(np.median(per_episode)),
+        "position_error_p95_m": float(np.percentile(per_episode, 95)),
+        "heading_error_mean_deg": float(result["heading_error_deg"][:, mask].mean()),
+        "success_rate": float(np.mean((per_episode < success_m) & ~ended)),
+        "success_threshold_m": success_m,
+        "terminated_episodes": int(ended.sum()),
+    }
+
+
+def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: int = 0) -> Path:
+    """PNG: the vehicle's path against the reference in 3-D and from the top, and the error over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    p, r, t = result["position"][episode], result["target"][episode], result["time"]
+    fig = plt.figure(figsize=(14, 4.6))
+    ax = fig.add_subplot(1, 3, 1, projection="3d")
+    ax.plot(*r.T, "k--", lw=1, label="reference")
+    ax.plot(*p.T, "C0", lw=1.5, label="vehicle")
+    ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
+    ax.legend(loc="upper left")
+    ax2 = fig.add_subplot(1, 3, 2)
+    ax2.plot(r[:, 0], r[:, 1], "k--", lw=1, label="reference")
+    ax2.plot(p[:, 0], p[:, 1], "C0", lw=1.5, label="vehicle")
+    ax2.plot(p[0, 0], p[0, 1], "go", label="start")
+    ax2.set_aspect("equal", adjustable="datalim")
+    ax2.set_xlabel("x (m)"), ax2.set_ylabel("y (m)"), ax2.set_title("top view")
+    ax2.legend()
+    ax3 = fig.add_subplot(1, 3, 3)
+    for e in range(result["error"].shape[0]):
+        ax3.plot(t, result["error"][e], color="0.8", lw=0.6)
+    ax3.plot(t, result["error"][episode], "C0", lw=1.5, label=f"episode {episode}")
+    ax3.plot(t, np.median(result["error"], axis=0), "C3", lw=1.2, label="median of episodes")
+    ax3.set_yscale("log"), ax3.set_xlabel("time (s)"), ax3.set_ylabel("position error (m)")
+    ax3.legend()
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: float, out_stem: Path) -> Path:
+    """Render one episode offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
+
+    MuJoCo picks its OpenGL backend when it is first imported, so rendering runs in a child
+    process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
+    """
+    data = out_stem.with_suffix(".npz")
+    np.savez(data, qpos=qpos, targets=targets, fps=fps, model=str(model_path))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.run([sys.executable, "-m", "marinejax.train.render", str(data), str(out_stem)],
+                          env=env, capture_output=True, text=True)
+    data.unlink(missing_ok=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"video rendering failed: {proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}")
+    return Path(proc.stdout.strip().splitlines()[-1])
+
+
+def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
+                 env_overrides: dict[str, Any] | None = None, video: bool = True) -> dict[str, Any]:
+    """Evaluate a run directory or checkpoint; write eval.json, path PNG and video into out_dir."""
+    config, env, policy, ckpt = load_policy(path, env_overrides)
+    out_dir = Path(out_dir) if out_dir else resolve_checkpoint(path)[0] / "eval"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    result = rollout_policy(env, policy, episodes, seed)
+    summary = {"env": config.env, "checkpoint": str(ckpt), "env_overrides": env_overrides or {}, "seed": seed,
+               **summarize(env, result)}
+    summary["plot"] = str(plot_paths(result, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir / "paths.png"))
+    if video:
+        from marinejax.vehicle import model_dir
+
+        model = model_dir() / f"{env.vehicle.name}.xml"
+        try:
+            summary["video"] = str(render_video(model, result["qpos"][0], result["target"][0], 1.0 / env.config.control_dt, out_dir / "episode0"))
+        except RuntimeError as err:
+            summary["video_error"] = str(err)
+    (out_dir / "eval.json").write_text(json.dumps(summary, indent=2))
+    return summary

@@ -1,0 +1,87 @@
+"""PPO hyperparameters, kept apart from the env configs; tuned values per task.
+
+`tuned_config(env_name)` gives the settings the README's results come from; any field can be
+overridden (`with_overrides`), and a misspelled key is an error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping
+
+from marinejax.envs.config import apply_overrides
+from marinejax.envs.registry import _split
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """Arguments of `brax.training.agents.ppo.train` (see its docstring), plus network sizes."""
+
+    num_timesteps: int = 3_000_000
+    num_envs: int = 256
+    unroll_length: int = 20
+    batch_size: int = 256
+    num_minibatches: int = 8
+    num_updates_per_batch: int = 4
+    learning_rate: float = 3e-4
+    entropy_cost: float = 1e-3
+    discounting: float = 0.97
+    gae_lambda: float = 0.95
+    clipping_epsilon: float = 0.2
+    reward_scaling: float = 1.0
+    max_grad_norm: float = 1.0
+    normalize_observations: bool = True
+    policy_hidden: tuple[int, ...] = (64, 64)
+    value_hidden: tuple[int, ...] = (64, 64)
+    num_evals: int = 20
+    num_eval_envs: int = 64
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
+                     "num_updates_per_batch", "num_evals", "num_eval_envs"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"ppo '{name}' must be >= 1, got {getattr(self, name)}")
+        if (self.batch_size * self.num_minibatches) % self.num_envs:
+            raise ValueError(
+                f"ppo batch_size * num_minibatches ({self.batch_size} * {self.num_minibatches}) must be a "
+                f"multiple of num_envs ({self.num_envs})"
+            )
+        for name in ("learning_rate", "discounting", "gae_lambda", "clipping_epsilon", "reward_scaling"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
+        if not (self.discounting < 1 and self.gae_lambda <= 1):
+            raise ValueError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """What `marinejax train` runs: an env with config overrides, and PPO settings."""
+
+    env: str
+    ppo: PPOConfig
+    env_overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+
+_STATION = PPOConfig()
+_TRACKING = PPOConfig(num_timesteps=10_000_000, discounting=0.98)
+_TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
+    "StationKeeping": (_STATION, {}),
+    "CircleTracking": (_TRACKING, {}),
+    "HelixTracking": (_TRACKING, {}),
+    "LemniscateTracking": (_TRACKING, {}),
+}
+
+
+def tuned_config(env_name: str) -> TrainConfig:
+    """The tuned training settings of env `env_name` (raises listing the registered envs if unknown)."""
+    _, task = _split(env_name)
+    ppo, env_overrides = _TUNED[task]
+    return TrainConfig(env=env_name, ppo=ppo, env_overrides=dict(env_overrides))
+
+
+def with_overrides(config: TrainConfig, ppo: Mapping[str, Any] | None = None, env: Mapping[str, Any] | None = None) -> TrainConfig:
+    """Validated copy: `ppo` keys are PPOConfig fields; `env` keys are env config keys (dotted or nested)."""
+    new_ppo = apply_overrides(config.ppo, ppo or {}, prefix="ppo.")
+    merged = {**config.env_overrides, **(env or {})}
+    return dataclasses.replace(config, ppo=new_ppo, env_overrides=merged)

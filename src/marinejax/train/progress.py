@@ -1,0 +1,58 @@
+"""Live training display: env steps, steps/s, evaluation return, position error, elapsed, time left."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+from marinejax.train.hyperparams import TrainConfig
+
+
+class TrainingProgress:
+    """Context manager; `update(record)` takes the records `runner.train` passes after each evaluation.
+
+    Position error is the evaluation episodes' mean over every step (the approach included)."""
+
+    def __init__(self, console: Console, config: TrainConfig):
+        self.total = config.ppo.num_timesteps
+        self.episode_length = None
+        self.progress = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("env steps · {task.fields[sps]} steps/s · return {task.fields[ret]} · pos. error {task.fields[err]}"),
+            TimeElapsedColumn(),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            console=console,
+            transient=False,
+        )
+        self.task = None
+        self.console = console
+        self.last_step, self.last_time = 0, 0.0
+
+    def __enter__(self) -> "TrainingProgress":
+        self.progress.__enter__()
+        self.task = self.progress.add_task("training", total=self.total, sps="-", ret="-", err="-")
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.progress.__exit__(*exc)
+
+    def update(self, record: dict[str, Any]) -> None:
+        step, elapsed = record["step"], record["elapsed"]
+        sps = record.get("training/sps")
+        if sps is None and step > self.last_step and elapsed > self.last_time:
+            sps = (step - self.last_step) / (elapsed - self.last_time)
+        self.last_step, self.last_time = step, elapsed
+        length = record.get("eval/avg_episode_length") or 1.0
+        err = record.get("eval/episode_position_error")
+        self.progress.update(
+            self.task,
+            completed=min(step, self.total),
+            sps=f"{sps:,.0f}" if sps else "-",
+            ret=f"{record['eval/episode_reward']:.1f}" if "eval/episode_reward" in record else "-",
+            err=f"{err / length:.3f} m" if err is not None else "-",
+        )

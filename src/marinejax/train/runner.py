@@ -1,0 +1,204 @@
+"""Run a PPO training into a run directory, with progress, metrics, checkpoints and resume.
+
+Run directory layout:
+  config.json        the resolved env config, PPO settings, versions and machine
+  metrics.jsonl      one line per evaluation: env steps, wall time, evaluation metrics
+  checkpoints/<step> Brax PPO checkpoints (normalizer, policy, value params + network config)
+  curve.png          learning curve (return and position error vs env steps and wall time)
+  summary.json       written when training ends (or is interrupted)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import os
+import platform
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import jax
+import numpy as np
+
+from marinejax.envs import make, wrap_for_training
+from marinejax.envs.base import MarineEnv
+from marinejax.envs.config import to_dict
+from marinejax.envs.randomization import brax_randomization_fn
+from marinejax.train.hyperparams import PPOConfig, TrainConfig
+
+CHECKPOINTS = "checkpoints"
+
+
+def network_factory(ppo: PPOConfig) -> Callable:
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    return functools.partial(
+        ppo_networks.make_ppo_networks,
+        policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
+        value_hidden_layer_sizes=tuple(ppo.value_hidden),
+    )
+
+
+def build_env(config: TrainConfig) -> MarineEnv:
+    return make(config.env, **config.env_overrides)
+
+
+def machine() -> dict[str, Any]:
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "jax_backend": jax.default_backend(),
+            "devices": [str(d) for d in jax.devices()], "jax": jax.__version__, "python": platform.python_version()}
+
+
+def latest_checkpoint(run_dir: Path) -> Path | None:
+    """Newest complete checkpoint directory of a run, or None."""
+    root = Path(run_dir) / CHECKPOINTS
+    steps = sorted((p for p in root.glob("*") if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+    for p in reversed(steps):
+        if (p / "ppo_network_config.json").exists():
+            return p
+    return None
+
+
+def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
+    from importlib.metadata import version
+
+    data = {
+        "env": config.env,
+        "env_overrides": dict(config.env_overrides),
+        "env_config": to_dict(env.config),
+        "ppo": dataclasses.asdict(config.ppo),
+        "observation_size": env.observation_size,
+        "action_size": env.action_size,
+        "versions": {p: version(p) for p in ("marinejax", "jax", "brax", "mujoco", "mujoco-mjx")},
+        "machine": machine(),
+    }
+    (run_dir / "config.json").write_text(json.dumps(data, indent=2))
+
+
+def load_train_config(run_dir: Path) -> TrainConfig:
+    data = json.loads((Path(run_dir) / "config.json").read_text())
+    ppo = data["ppo"]
+    ppo = PPOConfig(**{**ppo, "policy_hidden": tuple(ppo["policy_hidden"]), "value_hidden": tuple(ppo["value_hidden"])})
+    return TrainConfig(env=data["env"], ppo=ppo, env_overrides=data["env_overrides"])
+
+
+def _json_metrics(metrics: dict[str, Any]) -> dict[str, float]:
+    return {k: float(np.asarray(v)) for k, v in metrics.items() if np.ndim(v) == 0}
+
+
+def train(
+    config: TrainConfig,
+    run_dir: Path,
+    resume: bool = False,
+    on_eval: Callable[[dict[str, float]], None] | None = None,
+    randomize: bool = False,
+) -> dict[str, Any]:
+    """Train `config` into `run_dir`; resume from its newest checkpoint when `resume`.
+
+    Calls `on_eval(record)` after every evaluation, where record has 'step' (env steps, counted
+    across resumes), 'elapsed' (s of wall time, across resumes) and the evaluation metrics; the
+    same record is appended to metrics.jsonl. On KeyboardInterrupt the newest checkpoint stays
+    usable and the summary says 'interrupted'.
+    """
+    from brax.training.agents.ppo import checkpoint as ppo_checkpoint
+    from brax.training.agents.ppo import train as ppo_train
+
+    run_dir = Path(run_dir)
+    ppo = config.ppo
+    env = build_env(config)
+    steps_done, elapsed_before, restore = 0, 0.0, None
+    if resume:
+        ckpt = latest_checkpoint(run_dir)
+        if ckpt is None:
+            raise FileNotFoundError(f"no checkpoint to resume from in {run_dir / CHECKPOINTS}")
+        steps_done, restore = int(ckpt.name), ckpt
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines() if (run_dir / "metrics.jsonl").exists() else []
+        records = [json.loads(line) for line in lines if line.strip()]
+        kept = [r for r in records if r["step"] <= steps_done]
+        elapsed_before = kept[-1]["elapsed"] if kept else 0.0
+        (run_dir / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in kept))
+    else:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        save_config(run_dir, config, env)
+    remaining = ppo.num_timesteps - steps_done
+    if remaining <= 0:
+        return json.loads((run_dir / "summary.json").read_text()) if (run_dir / "summary.json").exists() else {}
+
+    factory = network_factory(ppo)
+    net_config = ppo_checkpoint.network_config(
+        observation_size=env.observation_size,
+        action_size=env.action_size,
+        normalize_observations=ppo.normalize_observations,
+        network_factory=factory,
+    )
+    start = time.monotonic()
+    records: list[dict[str, float]] = []
+
+    def progress(step: int, metrics: dict[str, Any]) -> None:
+        if step == 0 and steps_done > 0:
+            return  # the resumed policy was already evaluated at this step
+        record = {"step": steps_done + int(step), "elapsed": elapsed_before + time.monotonic() - start, **_json_metrics(metrics)}
+        records.append(record)
+        with (run_dir / "metrics.jsonl").open("a") as f:
+            f.write(json.dumps(record) + "\n")
+        if on_eval:
+            on_eval(record)
+
+    def save_params(step: int, make_policy, params) -> None:
+        if step > 0:
+            ppo_checkpoint.save(run_dir / CHECKPOINTS, steps_done + int(step), params, net_config)
+
+    randomization = brax_randomization_fn(env.config.randomization) if randomize else None
+    status = "finished"
+    try:
+        ppo_train.train(
+            environment=env,
+            num_timesteps=remaining,
+            episode_length=env.config.episode_length,
+            wrap_env_fn=wrap_for_training,
+            randomization_fn=randomization,
+            num_envs=ppo.num_envs,
+            unroll_length=ppo.unroll_length,
+            batch_size=ppo.batch_size,
+            num_minibatches=ppo.num_minibatches,
+            num_updates_per_batch=ppo.num_updates_per_batch,
+            learning_rate=ppo.learning_rate,
+            entropy_cost=ppo.entropy_cost,
+            discounting=ppo.discounting,
+            gae_lambda=ppo.gae_lambda,
+            clipping_epsilon=ppo.clipping_epsilon,
+            reward_scaling=ppo.reward_scaling,
+            max_grad_norm=ppo.max_grad_norm,
+            normalize_observations=ppo.normalize_observations,
+            network_factory=factory,
+            num_evals=ppo.num_evals,
+            num_eval_envs=ppo.num_eval_envs,
+            deterministic_eval=True,
+            seed=ppo.seed + steps_done,
+            restore_checkpoint_path=str(restore) if restore else None,
+            progress_fn=progress,
+            policy_params_fn=save_params,
+        )
+    except KeyboardInterrupt:
+        status = "interrupted"
+    summary = {
+        "status": status,
+        "env": config.env,
+        "env_steps": records[-1]["step"] if records else steps_done,
+        "wall_time_s": records[-1]["elapsed"] if records else elapsed_before,
+        "last_eval": records[-1] if records else None,
+        "checkpoint": str(latest_checkpoint(run_dir)) if latest_checkpoint(run_dir) else None,
+    }
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    if status == "interrupted":
+        raise KeyboardInterrupt
+    return summary
