@@ -91,3 +91,5 @@ def test_wheel_ships_models_and_data(tmp_path):
     assert "marinejax/models/mjcf/bluerov2_heavy.xml" in names
     assert "marinejax/models/mjcf/bluerov2.xml" in names
     assert "marinejax/data/t200_bollard_10-20V.csv" in names
+    assert "marinejax/policies/BlueROV2Heavy-StationKeeping/config.json" in names
+    assert any(n.startswith("marinejax/policies/BlueROV2Heavy-StationKeeping/checkpoints/") for n in names)

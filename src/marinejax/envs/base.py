@@ -45,20 +45,20 @@ class RewardConfig:
     """Weights of the reward terms (each logged as metrics['reward/<term>'], weighted) and scales.
 
     position: distance term of MarineGym's paper, in (0, 1], scale `position_scale` (m);
-    precision: exp(−d / precision_scale), sharp near zero error; upright: ((up_z + 1)/2)^2;
+    precision: exp(−d / precision_scale), sharp near zero error (weights tuned on station keeping); upright: ((up_z + 1)/2)^2;
     heading: (1 + cos(heading error))/2; effort: −mean(action^2); smoothness: −mean(Δaction^2);
     angular_velocity: −|ω|^2 (rad^2/s^2).
     """
 
-    position: float = 1.0
-    position_scale: float = 0.833
+    position: float = 2.0
+    position_scale: float = 1.0
     precision: float = 1.0
-    precision_scale: float = 0.05
-    upright: float = 0.5
-    heading: float = 0.5
-    effort: float = 0.05
-    smoothness: float = 0.05
-    angular_velocity: float = 0.05
+    precision_scale: float = 0.1
+    upright: float = 0.3
+    heading: float = 0.3
+    effort: float = 0.02
+    smoothness: float = 0.02
+    angular_velocity: float = 0.02
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,6 +112,11 @@ class MarineEnv(Env):
         n = self.vehicle.num_thrusters
         self._action_size = n if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+
+    @classmethod
+    def default_config(cls) -> EnvConfig:
+        """This task's default config (an immutable value; override with marinejax.make(name, **overrides))."""
+        return cls.config_class()
 
     # --- Brax Env interface -------------------------------------------------------------
     @property

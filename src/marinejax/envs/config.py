@@ -14,7 +14,7 @@ from typing import Any, Mapping, TypeVar
 C = TypeVar("C")
 
 
-def _check_value(path: str, old: Any, new: Any) -> Any:
+def _check_value(path: str, old: Any, new: Any, variable_length: bool = False) -> Any:
     if dataclasses.is_dataclass(old):
         if isinstance(new, Mapping):
             return apply_overrides(old, new, prefix=path + ".")
@@ -34,6 +34,8 @@ def _check_value(path: str, old: Any, new: Any) -> Any:
             raise ValueError(f"config '{path}' must be an integer, got {new!r}")
         return type(old)(new)
     if isinstance(old, tuple):
+        if variable_length and old and isinstance(new, (tuple, list)) and len(new) >= 1:
+            return tuple(_check_value(f"{path}[{i}]", old[0], n) for i, n in enumerate(new))
         if not isinstance(new, (tuple, list)) or len(new) != len(old):
             raise ValueError(f"config '{path}' must be a sequence of {len(old)} values, got {new!r}")
         return tuple(_check_value(f"{path}[{i}]", o, n) for i, (o, n) in enumerate(zip(old, new)))
@@ -58,12 +60,14 @@ def apply_overrides(config: C, overrides: Mapping[str, Any], prefix: str = "") -
             if isinstance(nested.get(head), dict) and not isinstance(value, Mapping):
                 raise ValueError(f"config '{prefix}{head}' given both as a value and as a section")
             nested[head] = value
-    valid = [f.name for f in dataclasses.fields(config)]
+    fields = {f.name: f for f in dataclasses.fields(config)}
+    valid = list(fields)
     changes = {}
     for key, value in nested.items():
         if key not in valid:
             raise ValueError(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}")
-        changes[key] = _check_value(prefix + key, getattr(config, key), value)
+        variable = bool(fields[key].metadata.get("variable_length"))
+        changes[key] = _check_value(prefix + key, getattr(config, key), value, variable)
     return dataclasses.replace(config, **changes)
 
 

@@ -33,7 +33,7 @@ def _split(name: str) -> tuple[str, str]:
 def get_default_config(name: str) -> EnvConfig:
     """The default (immutable) config of env `name`."""
     _, task = _split(name)
-    return TASKS[task][0]()
+    return (StationKeeping if TASKS[task][1] is None else Tracking).default_config()
 
 
 def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> MarineEnv:

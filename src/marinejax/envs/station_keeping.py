@@ -10,7 +10,8 @@ Observation (all in the body frame FLU unless stated), size 14 + number of actio
   [8:11]  linear velocity, m/s
   [11:14] angular velocity, rad/s
   [14:]   last action
-Reward position term: 1/(1 + (d/position_scale)^2) (MarineGym's 0.5/(1 + (1.2 d)^2), rescaled to 1).
+Reward position term: 1/(1 + (d/position_scale)^2), the form of MarineGym's 0.5/(1 + (1.2 d)^2),
+with a 1 m scale by default.
 """
 
 from __future__ import annotations

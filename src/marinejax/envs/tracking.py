@@ -32,7 +32,7 @@ class TrackingConfig(EnvConfig):
     episode_length: int = 400  # 20 s at 20 Hz
     max_distance: float = 1.0  # m from the moving reference
     reset: ResetConfig = ResetConfig(position=0.1, depth=0.1, tilt=0.1, yaw=0.3, velocity=0.05, angular_velocity=0.05)
-    reward: RewardConfig = RewardConfig(position_scale=0.625)
+    reward: RewardConfig = RewardConfig(position_scale=0.625)  # MarineGym's 0.5 exp(−1.6 d)
     trajectory: TrajectoryConfig = TrajectoryConfig()
     num_reference_points: int = 4
     reference_spacing: float = 0.25  # s between the observed reference points

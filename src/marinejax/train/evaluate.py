@@ -8,9 +8,12 @@ and 95th percentile over episodes, and the success rate (that per-episode error 
 from __future__ import annotations
 
 import json
+import logging
 import os
 import subprocess
 import sys
+import warnings
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -28,13 +31,24 @@ class CheckpointError(ValueError):
     """A checkpoint or run directory that cannot be used (missing, incomplete or corrupt)."""
 
 
-def resolve_checkpoint(path: Path) -> tuple[Path, Path]:
-    """(run directory, checkpoint step directory) for a run directory or a checkpoint directory."""
+def shipped_policies() -> dict[str, Path]:
+    """Env name → run directory of the trained policies installed with marinejax."""
+    root = Path(str(resources.files("marinejax"))) / "policies"
+    return {p.name: p for p in sorted(root.iterdir()) if (p / "config.json").exists()} if root.is_dir() else {}
+
+
+def resolve_checkpoint(path: Path | str) -> tuple[Path, Path]:
+    """(run directory, checkpoint step directory) for a run directory, a checkpoint directory, or the
+    name of an env with a shipped policy (e.g. "BlueROV2Heavy-StationKeeping")."""
     from marinejax.train.runner import CHECKPOINTS, latest_checkpoint
 
+    shipped = shipped_policies()
+    if not Path(path).exists() and str(path) in shipped:
+        path = shipped[str(path)]
     path = Path(path)
     if not path.exists():
-        raise CheckpointError(f"no such run directory or checkpoint: {path}")
+        raise CheckpointError(f"no such run directory or checkpoint: {path} (shipped policies: {sorted(shipped)})")
+    path = path.resolve()  # orbax reads absolute paths only
     if (path / "config.json").exists():
         ckpt = latest_checkpoint(path)
         if ckpt is None:
@@ -64,7 +78,10 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None):
     env = build_env(config)
     try:
         net_config = json.loads((ckpt / "ppo_network_config.json").read_text())
-        params = ppo_checkpoint.load(ckpt)
+        with warnings.catch_warnings():  # orbax warns about sharding metadata of CPU checkpoints
+            warnings.simplefilter("ignore")
+            logging.getLogger("absl").setLevel(logging.ERROR)
+            params = ppo_checkpoint.load(ckpt)
     except Exception as err:  # orbax raises many kinds of errors on damaged files
         raise CheckpointError(f"checkpoint {ckpt} could not be read: {type(err).__name__}: {err}") from None
     if net_config.get("observation_size") != env.observation_size or net_config.get("action_size") != env.action_size:
@@ -141,13 +158,15 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
 
     p, r, t = result["position"][episode], result["target"][episode], result["time"]
     fig = plt.figure(figsize=(14, 4.6))
+    station = bool(np.allclose(r, r[0]))  # station keeping: the reference is one point
     ax = fig.add_subplot(1, 3, 1, projection="3d")
-    ax.plot(*r.T, "k--", lw=1, label="reference")
+    ax.plot(*(r[:1].T if station else r.T), "r*" if station else "k--", lw=1, ms=10, label="target" if station else "reference")
     ax.plot(*p.T, "C0", lw=1.5, label="vehicle")
     ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
     ax.legend(loc="upper left")
     ax2 = fig.add_subplot(1, 3, 2)
-    ax2.plot(r[:, 0], r[:, 1], "k--", lw=1, label="reference")
+    ax2.plot(r[:1, 0] if station else r[:, 0], r[:1, 1] if station else r[:, 1], "r*" if station else "k--", lw=1, ms=12,
+             label="target" if station else "reference")
     ax2.plot(p[:, 0], p[:, 1], "C0", lw=1.5, label="vehicle")
     ax2.plot(p[0, 0], p[0, 1], "go", label="start")
     ax2.set_aspect("equal", adjustable="datalim")
@@ -188,7 +207,10 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
                  env_overrides: dict[str, Any] | None = None, video: bool = True) -> dict[str, Any]:
     """Evaluate a run directory or checkpoint; write eval.json, path PNG and video into out_dir."""
     config, env, policy, ckpt = load_policy(path, env_overrides)
-    out_dir = Path(out_dir) if out_dir else resolve_checkpoint(path)[0] / "eval"
+    run_dir = resolve_checkpoint(path)[0]
+    if out_dir is None and run_dir.parent == Path(str(resources.files("marinejax"))) / "policies":
+        out_dir = Path("runs") / f"eval-{config.env}"  # never write into the installed package
+    out_dir = Path(out_dir) if out_dir else run_dir / "eval"
     out_dir.mkdir(parents=True, exist_ok=True)
     result = rollout_policy(env, policy, episodes, seed)
     summary = {"env": config.env, "checkpoint": str(ckpt), "env_overrides": env_overrides or {}, "seed": seed,

@@ -38,6 +38,7 @@ def network_factory(ppo: PPOConfig) -> Callable:
         ppo_networks.make_ppo_networks,
         policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
         value_hidden_layer_sizes=tuple(ppo.value_hidden),
+        init_noise_std=ppo.init_noise_std,
     )
 
 
@@ -112,7 +113,7 @@ def train(
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
     from brax.training.agents.ppo import train as ppo_train
 
-    run_dir = Path(run_dir)
+    run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
     ppo = config.ppo
     env = build_env(config)
     steps_done, elapsed_before, restore = 0, 0.0, None

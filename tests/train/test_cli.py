@@ -1,0 +1,104 @@
+"""End to end through the console script: train → eval → resume, and user mistakes."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+TINY = [
+    "--timesteps", "1600", "--episodes", "4",
+    "--ppo", "num_envs=8", "--ppo", "batch_size=8", "--ppo", "num_minibatches=2", "--ppo", "unroll_length=5",
+    "--ppo", "num_evals=3", "--ppo", "num_eval_envs=4", "--ppo", "policy_hidden=(16,)", "--ppo", "value_hidden=(16,)",
+    "--env", "episode_length=20",
+]
+
+
+def marinejax(*args, timeout=600, cwd=None):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.run([sys.executable, "-m", "marinejax.cli", *args], capture_output=True, text=True, timeout=timeout,
+                          env=env, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    run = tmp_path_factory.mktemp("runs") / "sk"
+    # a relative run directory, as users type it
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", "sk", *TINY, cwd=run.parent)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return run
+
+
+@pytest.mark.slow
+def test_train_writes_a_complete_run_directory(run_dir):
+    for name in ("config.json", "metrics.jsonl", "curve.png", "summary.json", "eval/eval.json", "eval/paths.png"):
+        assert (run_dir / name).exists(), name
+    config = json.loads((run_dir / "config.json").read_text())
+    assert config["env"] == "BlueROV2Heavy-StationKeeping" and config["ppo"]["num_envs"] == 8
+    assert config["env_config"]["episode_length"] == 20
+    records = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in records] == sorted(r["step"] for r in records) and records[-1]["step"] >= 1600
+    assert "eval/episode_position_error" in records[-1]
+    checkpoints = sorted((run_dir / "checkpoints").iterdir())
+    assert len(checkpoints) == 2 and int(checkpoints[-1].name) >= 1600
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["status"] == "finished" and summary["evaluation"]["episodes"] == 4
+    video = summary["evaluation"].get("video")
+    assert video and Path(video).stat().st_size > 10_000, summary["evaluation"].get("video_error")
+
+
+@pytest.mark.slow
+def test_eval_loads_the_run_and_writes_summary_plot_video(run_dir, tmp_path):
+    proc = marinejax("eval", str(run_dir), "--episodes", "3", "--out", str(tmp_path), "--current", "constant", "--randomize")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["episodes"] == 3 and result["env_overrides"] == {"randomization.enabled": True, "current.mode": "constant"}
+    assert 0 <= result["position_error_mean_m"] < 10 and (tmp_path / "paths.png").stat().st_size > 10_000
+    assert "position error" in proc.stdout
+
+
+@pytest.mark.slow
+def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
+    run = tmp_path / "interrupted"
+    shutil.copytree(run_dir, run)
+    newest = sorted((run / "checkpoints").iterdir())[-1]
+    shutil.rmtree(newest)  # as if training had stopped before its last checkpoint
+    kept = int(sorted((run / "checkpoints").iterdir())[-1].name)
+    proc = marinejax("train", "--resume", str(run), "--episodes", "2", "--no-video")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    steps = [r["step"] for r in records]
+    assert steps == sorted(steps) and steps[-1] >= 1600 and kept in steps
+    assert int(sorted((run / "checkpoints").iterdir())[-1].name) >= 1600
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["train", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate=-1"], "'learning_rate' must be > 0"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--env", "reward.efort=1"], "unknown config key 'reward.efort'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "num_envs"], "--ppo expects KEY=VALUE"),
+        (["eval", "/no/such/run"], "no such run directory or checkpoint"),
+        (["train", "--resume", "/no/such/run"], "is not a run directory"),
+    ],
+)
+def test_user_mistakes_exit_2_with_one_line_and_no_traceback(args, message):
+    proc = marinejax(*args, timeout=120)
+    assert proc.returncode == 2
+    assert message in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.slow
+def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
+    run = tmp_path / "corrupt"
+    shutil.copytree(run_dir, run)
+    newest = sorted((run / "checkpoints").iterdir())[-1]
+    for f in newest.rglob("*"):
+        if f.is_file() and f.name != "ppo_network_config.json":
+            f.write_bytes(b"garbage")
+    proc = marinejax("eval", str(run), "--no-video", "--episodes", "2", timeout=300)
+    assert proc.returncode == 2 and "could not be read" in proc.stderr and "Traceback" not in proc.stderr
