@@ -1,6 +1,5 @@
 """The quickstart notebook runs top to bottom (with MARINEJAX_QUICK=1 for small settings)."""
 
-import os
 from pathlib import Path
 
 import pytest

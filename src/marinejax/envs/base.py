@@ -176,10 +176,9 @@ class MarineEnv(Env):
         info["last_action"] = action
         out = errors["position_error"] > cfg.max_distance
         nonfinite = 1.0 - finite.astype(jnp.float32)
-        weights = cfg.reward
-        reward = sum(getattr(weights, k) * v for k, v in terms.items()) * finite
         done = jnp.maximum(out.astype(jnp.float32), nonfinite)
         new = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
+        reward = sum(v for k, v in new.items() if k.startswith("reward/")) * finite
         # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
         metrics = dict(state.metrics)
         metrics.update({k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in new.items()})

@@ -32,9 +32,14 @@ def skew(x: jnp.ndarray) -> jnp.ndarray:
     )
 
 
+def rigid_body_mass_diagonal(mass: jnp.ndarray, inertia: jnp.ndarray) -> jnp.ndarray:
+    """Diagonal (6,) of M_RB for a body whose origin is its centre of gravity; mass in kg, principal inertia (3,) in kg m^2."""
+    return jnp.concatenate([jnp.full((3,), mass), inertia])
+
+
 def rigid_body_mass_matrix(mass: jnp.ndarray, inertia: jnp.ndarray) -> jnp.ndarray:
-    """M_RB (6, 6) for a body whose origin is its centre of gravity; mass in kg, principal inertia (3,) in kg m^2."""
-    return jnp.diag(jnp.concatenate([jnp.full((3,), mass), inertia]))
+    """M_RB (6, 6) for a body whose origin is its centre of gravity."""
+    return jnp.diag(rigid_body_mass_diagonal(mass, inertia))
 
 
 def added_mass_matrix(params: HydroParams) -> jnp.ndarray:
@@ -59,9 +64,13 @@ def coriolis_force_diagonal(mass_diag: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndar
     return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
 
 
+def _damping_diagonal(params: HydroParams, nu_r: jnp.ndarray) -> jnp.ndarray:
+    return params.linear_damping + params.quadratic_damping * jnp.abs(nu_r)
+
+
 def damping_matrix(params: HydroParams, nu_r: jnp.ndarray) -> jnp.ndarray:
     """D(ν_r) = D_L + diag(D_Q ⊙ |ν_r|) (6, 6); D(ν_r) ν_r is the drag magnitude (opposes motion)."""
-    return jnp.diag(params.linear_damping + params.quadratic_damping * jnp.abs(nu_r))
+    return jnp.diag(_damping_diagonal(params, nu_r))
 
 
 def buoyancy_wrench(params: HydroParams, rot: jnp.ndarray, gravity: jnp.ndarray) -> jnp.ndarray:
@@ -113,23 +122,23 @@ def hydro_terms(
     # M_RB and M_A are diagonal (CG at the origin, principal axes; diagonal added mass), so the
     # Coriolis terms are cross products and the solve is a division.
     m_a = params.added_mass
-    m_rb = jnp.concatenate([jnp.full((3,), mass), inertia])
+    m_rb = rigid_body_mass_diagonal(mass, inertia)
     weight = jnp.concatenate([-mass * gravity * rot[2, :], jnp.zeros(3)])
     fluid = (
         -coriolis_force_diagonal(m_a, nu_r)
-        - (params.linear_damping + params.quadratic_damping * jnp.abs(nu_r)) * nu_r
+        - _damping_diagonal(params, nu_r) * nu_r
         + buoyancy_wrench(params, rot, gravity)
         + m_a * nu_c_dot
     )
     tau_other = tau + fluid
     rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
     acceleration = rhs / (m_rb + m_a)
-    return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - params.added_mass * acceleration)
+    return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a * acceleration)
 
 
 def kinetic_energy(params: HydroParams, mass, inertia, nu_r: jnp.ndarray) -> jnp.ndarray:
     """½ νᵀ M_RB ν + ½ ν_rᵀ M_A ν_r with ν = ν_r (no current), in J."""
-    return 0.5 * jnp.sum((jnp.concatenate([jnp.full((3,), mass), inertia]) + params.added_mass) * nu_r**2)
+    return 0.5 * jnp.sum((rigid_body_mass_diagonal(mass, inertia) + params.added_mass) * nu_r**2)
 
 
 def potential_energy(params: HydroParams, mass, position: jnp.ndarray, rot: jnp.ndarray, gravity) -> jnp.ndarray:
