@@ -139,8 +139,10 @@ def test_rolled_vehicle_rights_itself(heavy, passive):
     assert np.max(np.abs(roll[-300:])) < 0.8 * 20.0
 
 
-def test_energy_never_increases_without_thrust(heavy, passive):
-    state, traj = passive
+@pytest.mark.parametrize("dt", [0.01, 0.05])  # 0.05 s: the default and largest midpoint step
+def test_energy_never_increases_without_thrust(heavy, passive, dt):
+    state = passive[0]
+    traj = passive[1] if dt == 0.01 else run(heavy, np.zeros((B, T, 6), np.float32), state, dt=dt)
     h = heavy.sys.hydro
     m, inertia = rigid(heavy)
 
@@ -156,12 +158,29 @@ def test_energy_never_increases_without_thrust(heavy, passive):
     assert e[0] - e[-1] > 0.5
 
 
+def test_predictor_acceleration_equals_mujoco_forward_dynamics(heavy):
+    """The midpoint predictor's acceleration (hydro_terms, whole model) is what MuJoCo computes
+    under the wrench handed to it: the two halves of the integrator describe one model."""
+    from mujoco import mjx
+
+    from marinejax.physics import model_acceleration, to_physics
+
+    sys = heavy.sys
+    state = mj.initial_state(heavy, quaternion=(0.9, 0.2, 0.3, 0.1), velocity=(0.5, -0.2, 0.3), angular_velocity=(0.3, -0.4, 0.5))
+    ps = to_physics(sys, state)
+    thrust = jnp.linspace(-20.0, 30.0, heavy.num_thrusters)
+    xfrc, qacc = model_acceleration(sys, ps.data.qpos, ps.data.qvel, thrust, jnp.zeros(6), jnp.array([0.1, 0.2, 0.0]))
+    data = mjx.forward(sys.model, ps.data.replace(xfrc_applied=ps.data.xfrc_applied.at[sys.body_id].set(xfrc)))
+    np.testing.assert_allclose(np.asarray(qacc), np.asarray(data.qacc), atol=2e-5)
+    assert np.abs(np.asarray(qacc)).max() > 1.0
+
+
 def test_heave_with_large_added_mass_is_stable_and_step_size_independent(heavy):
     """Heave added mass is 1.38 x the rigid mass: a lagged scheme would diverge; ours must not."""
     wrench = np.zeros((B, T, 6), np.float32)
     wrench[:, :, 2] = np.where(np.arange(T) * 1.0 < T / 2, -20.0, 10.0)[None, :]
     velocities = {}
-    for dt in (0.002, 0.01, 0.02):
+    for dt in (0.002, 0.01, 0.02, 0.05):  # 0.05 s: the largest step the default integrator allows
         traj = run(heavy, wrench, make_state(heavy), dt=dt)
         t = np.asarray(traj.time)
         w = np.asarray(traj.velocity[0, :, 2])
@@ -169,7 +188,7 @@ def test_heave_with_large_added_mass_is_stable_and_step_size_independent(heavy):
         # the switch happens at t = 500 dt, so compare on the first 2 s with the force held
         grid = np.linspace(0.1, 0.99, 40)
         velocities[dt] = np.interp(grid, t, w)
-    for dt in (0.01, 0.02):
+    for dt in (0.01, 0.02, 0.05):
         assert np.max(np.abs(velocities[dt] - velocities[0.002])) < 0.01  # m/s, out of ~0.3
     # after the step to +10 N (at 5 s for dt 0.01) the speed settles at the damping root
     traj = run(heavy, wrench, make_state(heavy), dt=0.01)
@@ -221,7 +240,7 @@ def thruster_runs(heavy):
         angular_velocity=jnp.zeros((4, 3)),
         thrust=jnp.zeros((4, 8)),
     )
-    return cmd, state, mj.rollout(heavy, cmd, state, control_dt=0.05, substeps=5)
+    return cmd, state, mj.rollout(heavy, cmd, state)  # defaults: 50 ms control, one midpoint step
 
 
 def test_forward_command_moves_along_heading(thruster_runs):
@@ -257,8 +276,8 @@ def test_thrust_follows_first_order_lag(heavy, thruster_runs):
 
 def test_batched_equals_single_and_is_deterministic(heavy, thruster_runs):
     cmd, state, traj = thruster_runs
-    single = mj.rollout(heavy, cmd[1], jax.tree.map(lambda x: x[1], state), control_dt=0.05, substeps=5)
-    again = mj.rollout(heavy, cmd[1], jax.tree.map(lambda x: x[1], state), control_dt=0.05, substeps=5)
+    single = mj.rollout(heavy, cmd[1], jax.tree.map(lambda x: x[1], state))
+    again = mj.rollout(heavy, cmd[1], jax.tree.map(lambda x: x[1], state))
     np.testing.assert_allclose(np.asarray(single.position), np.asarray(traj.position[1]), atol=1e-6)
     np.testing.assert_allclose(np.asarray(single.quaternion), np.asarray(traj.quaternion[1]), atol=1e-6)
     np.testing.assert_array_equal(np.asarray(single.position), np.asarray(again.position))
@@ -275,6 +294,12 @@ def test_bad_inputs_name_the_problem(heavy):
         mj.rollout(heavy, np.zeros((10, 8)), current=np.zeros(2))
     with pytest.raises(ValueError, match="substeps"):
         mj.rollout(heavy, np.zeros((10, 8)), substeps=0)
+    with pytest.raises(ValueError, match=r"unknown integrator 'rk4'; valid: \['midpoint', 'euler'\]"):
+        mj.rollout(heavy, np.zeros((10, 8)), integrator="rk4")
+    with pytest.raises(ValueError, match=r"0.0600 s exceeds 0.05 s.*'midpoint'"):
+        mj.rollout(heavy, np.zeros((10, 8)), control_dt=0.06)
+    with pytest.raises(ValueError, match=r"0.0250 s exceeds 0.02 s.*'euler'"):
+        mj.rollout(heavy, np.zeros((10, 8)), substeps=2, integrator="euler")
 
 
 def test_divergence_is_reported_not_propagated(heavy):

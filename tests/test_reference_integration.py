@@ -1,9 +1,10 @@
 """Independent reference check: marinejax.rollout against a high-accuracy integration of Fossen's equations.
 
 What is compared: a coupled 10 s manoeuvre of the BlueROV2 Heavy (surge, yaw and heave commanded
-together, from a 10 degree initial roll, in still water) simulated by `marinejax.rollout` (MuJoCo MJX,
-semi-implicit Euler, float32, physics step 2 ms) and by a reference written here from scratch in
-NumPy and integrated with SciPy's DOP853 at rtol = atol = 1e-10:
+together, from a 10 degree initial roll, in still water) simulated by `marinejax.rollout` at its
+default settings (MuJoCo MJX with the second-order midpoint integrator, float32, one 50 ms physics
+step per 50 ms control step) and by a reference written here from scratch in NumPy and integrated
+with SciPy's DOP853 at rtol = atol = 1e-10:
 
     (M_RB + M_A) ν̇ = τ + g_B(η) + g_W(η) − C_RB(ν) ν − C_A(ν) ν − D(ν) ν        (Fossen 2021)
     ṗ = R(q) v,   q̇ = ½ q ⊗ (0, ω)
@@ -13,8 +14,10 @@ shared rotation, Coriolis, damping or restoring code), takes its parameters as l
 paper, and integrates all of the rigid-body dynamics itself, whereas the simulator leaves the
 rigid-body part (including the rigid-body Coriolis terms and gravity) to MuJoCo and only injects the
 fluid wrench. Agreement therefore checks frames, signs, the added-mass treatment, the hand-off to
-MuJoCo and the time integration together. The remaining difference is the simulator's first-order
-time discretisation and float32 arithmetic, which the tolerances (2 cm, 1 degree) allow for.
+MuJoCo and the time integration together. The remaining difference is the simulator's
+second-order time discretisation and float32 arithmetic, which the tolerances (3 mm, 0.3 degree)
+allow for. The convergence test halves the step twice and checks the error falls about 4x each time
+(2x for the first-order "euler" integrator kept for comparison).
 """
 
 import math
@@ -38,23 +41,24 @@ ADDED_MASS = np.array([6.36, 7.12, 18.68, 0.189, 0.135, 0.222])
 D_LIN = np.array([13.7, 0.0, 33.0, 0.0, 0.8, 0.0])
 D_QUAD = np.array([141.0, 217.0, 190.0, 1.19, 0.47, 1.5])
 
-# Manoeuvre: control step 20 ms held over 10 physics steps of 2 ms, 10 s in all.
-CONTROL_DT = 0.02
-SUBSTEPS = 10
-STEPS = 500
+# Manoeuvre: 10 s of 50 ms control steps (the default), each one physics step (the default).
+CONTROL_DT = 0.05
+SUBSTEPS = 1
+STEPS = 200
 ROLL0 = math.radians(10.0)
 
-POSITION_TOL = 0.02  # m
-ATTITUDE_TOL = math.radians(1.0)  # rad
+POSITION_TOL = 0.003  # m
+ATTITUDE_TOL = math.radians(0.3)  # rad
 
 
 def command_profile() -> np.ndarray:
     """(STEPS, 6) body wrench [Fx, Fy, Fz, Mx, My, Mz], command k held over [k, k+1) * CONTROL_DT."""
     k = np.arange(STEPS)  # integer indices: switch times fall exactly on control step boundaries
+    per_s = round(1.0 / CONTROL_DT)
     cmd = np.zeros((STEPS, 6))
-    cmd[:, 0] = np.where(k < 300, 25.0, 10.0)  # surge: 25 N for 6 s, then 10 N
-    cmd[:, 2] = np.where((k >= 50) & (k < 400), -15.0, 0.0)  # heave down 15 N between 1 s and 8 s
-    cmd[:, 5] = np.where((k >= 100) & (k < 350), 2.0, 0.0)  # yaw 2 N m between 2 s and 7 s
+    cmd[:, 0] = np.where(k < 6 * per_s, 25.0, 10.0)  # surge: 25 N for 6 s, then 10 N
+    cmd[:, 2] = np.where((k >= 1 * per_s) & (k < 8 * per_s), -15.0, 0.0)  # heave down 15 N between 1 s and 8 s
+    cmd[:, 5] = np.where((k >= 2 * per_s) & (k < 7 * per_s), 2.0, 0.0)  # yaw 2 N m between 2 s and 7 s
     return cmd
 
 
@@ -147,27 +151,34 @@ def vehicle():
     return marinejax.load_vehicle("bluerov2_heavy")
 
 
-@pytest.fixture(scope="module")
-def runs(vehicle):
-    """Simulator and reference trajectories of the manoeuvre (computed once for the module)."""
-    commands = command_profile()
-    q0 = np.array([math.cos(ROLL0 / 2), math.sin(ROLL0 / 2), 0.0, 0.0])
-    t0 = time.perf_counter()
+def simulate(vehicle, commands, q0, substeps=SUBSTEPS, integrator=None):
+    """marinejax.rollout of the manoeuvre (defaults unless `integrator` is given) as float64 arrays."""
+    extra = {} if integrator is None else {"integrator": integrator}
     traj = marinejax.rollout(
         vehicle,
         commands,
         initial=marinejax.initial_state(vehicle, quaternion=q0),
         control_dt=CONTROL_DT,
-        substeps=SUBSTEPS,
+        substeps=substeps,
         mode="wrench",
+        **extra,
     )
-    sim = {
+    return {
         "time": np.asarray(traj.time, dtype=float),
         "position": np.asarray(traj.position, dtype=float),
         "quaternion": np.asarray(traj.quaternion, dtype=float),
         "velocity": np.asarray(traj.velocity, dtype=float),
         "angular_velocity": np.asarray(traj.angular_velocity, dtype=float),
     }
+
+
+@pytest.fixture(scope="module")
+def runs(vehicle):
+    """Simulator and reference trajectories of the manoeuvre (computed once for the module)."""
+    commands = command_profile()
+    q0 = np.array([math.cos(ROLL0 / 2), math.sin(ROLL0 / 2), 0.0, 0.0])
+    t0 = time.perf_counter()
+    sim = simulate(vehicle, commands, q0)
     t1 = time.perf_counter()
     ref = reference_trajectory(commands, q0)
     t2 = time.perf_counter()
@@ -225,7 +236,7 @@ def test_manoeuvre_is_nontrivial(runs):
     # first second (only surge is commanded then).
     roll = roll_of(quat)
     assert roll[0] > math.radians(9.0)
-    assert np.min(roll[:50]) < math.radians(1.0)
+    assert np.min(roll[: round(1.0 / CONTROL_DT)]) < math.radians(1.0)
 
 
 def test_simulator_matches_reference(runs):
@@ -258,3 +269,21 @@ def test_bounds_detect_a_small_model_error(runs):
     perturbed = reference_trajectory(commands, q0)
     assert np.linalg.norm(perturbed[:, :3] - ref[:, :3], axis=1).max() > POSITION_TOL
     assert quaternion_angle(perturbed[:, 3:7], ref[:, 3:7]).max() > ATTITUDE_TOL
+
+
+@pytest.mark.parametrize("integrator, order", [("midpoint", 2), ("euler", 1)])
+def test_convergence_order(vehicle, runs, integrator, order):
+    """Halving the physics step divides the position error by about 2^order (50 → 25 → 12.5 ms for
+    midpoint; 10 → 5 → 2.5 ms for euler, which is unstable beyond 20 ms)."""
+    _, ref = runs
+    commands = command_profile()
+    q0 = np.array([math.cos(ROLL0 / 2), math.sin(ROLL0 / 2), 0.0, 0.0])
+    first = 1 if integrator == "midpoint" else 5
+    errors = []
+    for substeps in (first, 2 * first, 4 * first):
+        sim = simulate(vehicle, commands, q0, substeps=substeps, integrator=integrator)
+        errors.append(np.linalg.norm(sim["position"] - ref[:, :3], axis=1).max())
+    ratios = [errors[0] / errors[1], errors[1] / errors[2]]
+    print(f"\n{integrator}: max position errors {[f'{e * 1000:.3f} mm' for e in errors]}, ratios {ratios[0]:.2f}, {ratios[1]:.2f}")
+    for r in ratios:
+        assert 2**order * 0.75 < r < 2**order * 1.25

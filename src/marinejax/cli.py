@@ -172,7 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     val = sub.add_parser("validate", help="simulate force steps and a roll swing; print them against closed-form values")
     val.add_argument("--vehicle", default="bluerov2_heavy", help="vehicle name (see marinejax.list_vehicles())")
     val.add_argument("--param-set", default=None, help="named parameter set of the vehicle (default: the vehicle's default)")
-    val.add_argument("--dt", type=float, default=0.01, help="physics step in seconds (default 0.01)")
+    val.add_argument("--dt", type=float, default=0.05,
+                     help="physics step in seconds, midpoint integrator (default 0.05, the env default)")
 
     bench = sub.add_parser("bench", add_help=False, help="benchmarks: `marinejax bench physics|envs [flags]` (-h for their flags)")
     bench.add_argument("what", choices=["physics", "envs"])

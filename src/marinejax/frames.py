@@ -62,6 +62,26 @@ def quat_to_euler(q: jnp.ndarray) -> jnp.ndarray:
     return jnp.stack([roll, pitch, yaw], axis=-1)
 
 
+def quat_multiply(p: jnp.ndarray, q: jnp.ndarray) -> jnp.ndarray:
+    """Hamilton product p ⊗ q of quaternions (w, x, y, z)."""
+    pw, pv, qw, qv = p[..., :1], p[..., 1:], q[..., :1], q[..., 1:]
+    w = pw * qw - jnp.sum(pv * qv, axis=-1, keepdims=True)
+    return jnp.concatenate([w, pw * qv + qw * pv + jnp.cross(pv, qv)], axis=-1)
+
+
+def quat_integrate(q: jnp.ndarray, omega_body: jnp.ndarray, dt) -> jnp.ndarray:
+    """Rotate unit quaternion q (body → world) by a constant body-frame angular velocity ω (rad/s)
+    held for dt (s): q ⊗ exp(ω dt / 2), exact for constant ω, renormalised; differentiable at ω = 0."""
+    half = 0.5 * dt * omega_body
+    th2 = jnp.sum(half * half, axis=-1, keepdims=True)
+    small = th2 < 1e-8
+    th = jnp.sqrt(jnp.where(small, 1.0, th2))
+    sinc = jnp.where(small, 1.0 - th2 / 6.0, jnp.sin(th) / th)
+    cos = jnp.where(small, 1.0 - th2 / 2.0, jnp.cos(th))
+    out = quat_multiply(q, jnp.concatenate([cos, sinc * half], axis=-1))
+    return out / jnp.linalg.norm(out, axis=-1, keepdims=True)
+
+
 def quat_angle_between(q1: jnp.ndarray, q2: jnp.ndarray) -> jnp.ndarray:
     """Smallest rotation angle (rad) between two unit quaternions."""
     d = jnp.abs(jnp.sum(q1 * q2, axis=-1))

@@ -242,3 +242,40 @@ def test_brax_registry_builds_our_envs():
 
     env = brax_envs.get_environment("BlueROV2-StationKeeping", episode_length=20)
     assert env.action_size == 6 and env.config.episode_length == 20
+
+
+@pytest.mark.parametrize("name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking"])
+def test_integral_observation_is_the_leaky_clipped_error_integral(name):
+    """info['integral'] follows I ← exp(−dt/T) I + dt clip(e, ±c) of the true error, and the last four
+    observation components are its body-frame position part and its heading part."""
+    from marinejax.envs.base import heading_error
+    from marinejax.frames import quat_to_mat
+    from marinejax.physics import from_physics
+
+    env = E.make(name)
+    c = env.config
+    step = jax.jit(env.step)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(3))
+    expected = np.zeros(4)
+    leak = math.exp(-c.control_dt / c.integral_time_constant)
+    action = jnp.full(env.action_size, 0.2)
+    for _ in range(40):  # 2 s: long enough for the clip (start errors up to 2 m) and the leak to matter
+        state = step(state, action)
+        vs = from_physics(env.sys, state.pipeline_state)
+        error = np.concatenate([np.asarray(env.target_position(state.info) - vs.position),
+                                [float(heading_error(vs.quaternion, state.info["task"].yaw))]])
+        expected = leak * expected + c.control_dt * np.clip(error, -c.integral_error_clip, c.integral_error_clip)
+    np.testing.assert_allclose(np.asarray(state.info["integral"]), expected, rtol=1e-4, atol=1e-6)
+    rot = np.asarray(quat_to_mat(vs.quaternion))
+    np.testing.assert_allclose(np.asarray(state.obs[-4:-1]), rot.T @ expected[:3], rtol=1e-4, atol=1e-6)
+    assert float(state.obs[-1]) == pytest.approx(expected[3], rel=1e-4, abs=1e-6)
+    assert np.abs(expected).max() > 0.01  # a non-trivial integral was checked
+    off = E.make(name, integral_time_constant=0.0)
+    assert off.observation_size == env.observation_size - 4
+
+
+def test_integral_settings_are_validated():
+    with pytest.raises(ValueError, match="integral_time_constant"):
+        E.make("BlueROV2Heavy-StationKeeping", integral_time_constant=-1.0)
+    with pytest.raises(ValueError, match="integral_error_clip"):
+        E.make("BlueROV2Heavy-StationKeeping", integral_error_clip=0.0)

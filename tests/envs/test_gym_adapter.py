@@ -21,7 +21,7 @@ NAME = "BlueROV2Heavy-StationKeeping"
 ID = f"marinejax/{NAME}-v0"
 LENGTH = 20
 N = 3
-OBS, ACT = 22, 8  # BlueROV2 Heavy: 8 thrusters, observation 14 + 8
+OBS, ACT = 26, 8  # BlueROV2 Heavy: 8 thrusters, observation 14 + 8 + 4 (integral)
 
 
 @pytest.fixture(scope="module")

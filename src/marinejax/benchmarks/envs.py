@@ -1,10 +1,14 @@
 """Env throughput: full env steps (thrusters, hydrodynamics, observation, reward) per second.
 
     marinejax bench envs [--envs BlueROV2Heavy-StationKeeping,...] [--batch-sizes 1,256,1024,4096,8192]
+                         [--physics midpoint:1,euler:5]
 
 Random actions in [−1, 1]; each timed call is a jitted, vmapped `lax.scan` over `--steps` env steps
 (compilation excluded). env steps/s = batch × steps / seconds; real-time factor = env steps/s ×
-control period (simulated seconds per wall second, summed over the batch).
+control period (simulated seconds per wall second, summed over the batch). Each `--physics` variant
+(integrator:substeps) is the same env with only those two settings changed, timed in the same run;
+the speed-up column compares each with the last variant (by default the first-order 5 × 10 ms
+scheme that was the default before the midpoint integrator).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from marinejax.benchmarks.common import fmt_rate, machine_info, parse_batch_size
 
 DEFAULT_ENVS = "BlueROV2Heavy-StationKeeping,BlueROV2Heavy-CircleTracking,BlueROV2Heavy-HelixTracking,BlueROV2Heavy-LemniscateTracking"
 DEFAULT_BATCHES = "1,256,1024,4096,8192"
+DEFAULT_PHYSICS = "midpoint:1,euler:5"
 MAX_ENV_STEPS_PER_CALL = 8192 * 10  # batch × steps cap per timed call: big batches take fewer steps
 
 
@@ -27,9 +32,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--envs", default=DEFAULT_ENVS, help="comma-separated env names (default: the four Heavy tasks)")
     p.add_argument("--batch-sizes", type=parse_batch_sizes, default=parse_batch_sizes(DEFAULT_BATCHES),
                    help=f"comma-separated batch sizes (default {DEFAULT_BATCHES})")
+    p.add_argument("--physics", type=parse_physics, default=parse_physics(DEFAULT_PHYSICS),
+                   help=f"comma-separated integrator:substeps variants to compare (default {DEFAULT_PHYSICS})")
     p.add_argument("--steps", type=positive(int), default=20, help="env steps per timed call (default 20, fewer for big batches)")
     p.add_argument("--out", type=Path, default=None, help="also write the results as JSON to this path")
     return p
+
+
+def parse_physics(text: str) -> list[tuple[str, int]]:
+    """'midpoint:1,euler:5' → [("midpoint", 1), ("euler", 5)] (argparse type)."""
+    from marinejax.physics import INTEGRATORS
+
+    out = []
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        name, _, n = item.partition(":")
+        if name not in INTEGRATORS or not n.isdigit() or int(n) < 1:
+            raise argparse.ArgumentTypeError(
+                f"bad physics variant {item!r}: expected INTEGRATOR:SUBSTEPS with INTEGRATOR in {list(INTEGRATORS)}")
+        out.append((name, int(n)))
+    if not out:
+        raise argparse.ArgumentTypeError("no physics variant given")
+    return out
 
 
 def time_env(env, batch: int, steps: int) -> dict:
@@ -63,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     names = [n.strip() for n in args.envs.split(",") if n.strip()]
     console = Console() if sys.stdout.isatty() else Console(width=140)
     try:
-        envs = {n: E.make(n) for n in names}
+        envs = {(n, integ, sub): E.make(n, integrator=integ, substeps=sub) for n in names for integ, sub in args.physics}
     except ValueError as err:
         print(f"marinejax bench envs: error: {err}", file=sys.stderr)
         return 2
@@ -72,22 +95,32 @@ def main(argv: list[str] | None = None) -> int:
     console.print(f"machine: {info['cpu']} | {info['cpu_count']} cores | jax {info['jax']} {info['backend']} {info['devices']}"
                   + (f" | load average {info['load_average'][0]:.2f} at start" if info["load_average"] else ""))
     start = time.perf_counter()
+    base = args.physics[-1]
     table = Table(title="env steps per second (random actions, full step: thrusters, hydrodynamics, observation, reward)")
-    for col in ("env", "control dt × substeps", "batch", "steps/call", "env steps/s", "real-time factor", "compile s"):
+    for col in ("env", "physics", "batch", "steps/call", "env steps/s", "real-time factor",
+                f"vs {base[0]}:{base[1]}", "compile s"):
         table.add_column(col, justify="left" if col == "env" else "right")
     rows = []
-    for name, env in envs.items():
-        c = env.config
+    for name in names:
         for batch in args.batch_sizes:
             steps = max(1, min(args.steps, MAX_ENV_STEPS_PER_CALL // batch))
-            t = time_env(env, batch, steps)
-            rate = batch * steps / t["seconds"]
-            rows.append({"env": name, "batch": batch, "steps": steps, "env_steps_per_s": rate,
-                         "real_time_factor": rate * c.control_dt, "control_dt": c.control_dt, "substeps": c.substeps, **t})
-            table.add_row(name, f"{c.control_dt:g} s × {c.substeps}", str(batch), str(steps), fmt_rate(rate),
-                          fmt_rate(rate * c.control_dt), f"{t['compile_seconds']:.1f}")
-            if not t["finite"]:
-                console.print(f"[red]{name} batch {batch}: non-finite observations[/red]")
+            # time the baseline first so that every variant's ratio uses a rate measured just before it
+            measured = {}
+            for variant in [base] + [v for v in args.physics if v != base]:
+                env = envs[(name, *variant)]
+                t = time_env(env, batch, steps)
+                measured[variant] = (t, batch * steps / t["seconds"])
+            for variant in args.physics:
+                t, rate = measured[variant]
+                c = envs[(name, *variant)].config
+                ratio = rate / measured[base][1]
+                rows.append({"env": name, "integrator": variant[0], "substeps": variant[1], "batch": batch, "steps": steps,
+                             "env_steps_per_s": rate, "real_time_factor": rate * c.control_dt, "control_dt": c.control_dt,
+                             "speedup_vs_baseline": ratio, "baseline": f"{base[0]}:{base[1]}", **t})
+                table.add_row(name, f"{variant[0]} {c.control_dt:g} s × {variant[1]}", str(batch), str(steps), fmt_rate(rate),
+                              fmt_rate(rate * c.control_dt), f"{ratio:.2f}×", f"{t['compile_seconds']:.1f}")
+                if not t["finite"]:
+                    console.print(f"[red]{name} {variant} batch {batch}: non-finite observations[/red]")
     console.print(table)
     console.print(f"total benchmark time {time.perf_counter() - start:.0f} s")
     if args.out:

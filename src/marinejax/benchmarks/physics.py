@@ -40,6 +40,8 @@ from marinejax.benchmarks.common import (
 
 import numpy as np
 
+from marinejax.physics import DEFAULT_INTEGRATOR, INTEGRATORS, check_integrator
+
 DEFAULT_BATCH_SIZES = "1,16,256,1024,4096,16384"
 MAX_BATCH_CPU = 16384
 MAX_BATCH_GPU = 65536
@@ -55,26 +57,27 @@ TARGET_OVERHEAD = 0.20
 
 # --------------------------------------------------------------------------------------------
 # NumPy baseline: one vehicle, float64, the equations of marinejax.hydro.forces and
-# marinejax.thrusters, integrated the way MuJoCo's Euler integrator does (semi-implicit: velocity
-# first, then position and quaternion with the new velocity).
+# marinejax.thrusters, integrated by the same scheme as the timed marinejax rollout.
 # --------------------------------------------------------------------------------------------
 
 
 class NumpyVehicle:
     """Plain-NumPy model of one vehicle: Fossen's equations (body frame FLU, origin at the CG),
-    T200 table lookup with a first-order lag, semi-implicit Euler at physics step `dt`.
+    T200 table lookup with a first-order lag, integrated at physics step `dt` by the same scheme as
+    marinejax (`integrator`: "midpoint" or MuJoCo's semi-implicit "euler").
 
     State: position (3,) world, quaternion (4,) w x y z body→world, world-frame linear velocity (3,)
     and body-frame angular velocity (3,) (MuJoCo's free-joint convention), thrust (N,).
     """
 
-    def __init__(self, vehicle, dt: float):
+    def __init__(self, vehicle, dt: float, integrator: str = "midpoint"):
         from marinejax.thrusters import load_bollard_table
 
         sys_ = vehicle.sys
         model, hydro, thr = sys_.model, sys_.hydro, sys_.thrusters
         body = sys_.body_id
         self.dt = float(dt)
+        self.integrator = integrator
         self.mass = float(model.body_mass[body])
         self.inertia = np.asarray(model.body_inertia[body], dtype=np.float64)
         self.g = float(-model.opt.gravity[2])
@@ -89,6 +92,7 @@ class NumpyVehicle:
         self.gain = np.asarray(thr.gain, dtype=np.float64)
         tc = float(thr.time_constant)
         self.alpha = 1.0 - math.exp(-self.dt / max(tc, 1e-9))
+        self.alpha_half = 1.0 - math.exp(-0.5 * self.dt / max(tc, 1e-9))
         self.num_thrusters = self.allocation.shape[1]
         # T200 bollard curves at the two table voltages around the supply voltage.
         table = load_bollard_table()
@@ -161,35 +165,50 @@ class NumpyVehicle:
         )
         return self.m_inv @ rhs
 
-    def step(self, pos, quat, vel_world, omega, thrust, target, current_world):
-        """One physics step of dt; returns the new (pos, quat, vel_world, omega, thrust)."""
-        dt = self.dt
-        thrust = thrust + self.alpha * (target - thrust)
-        tau = self.allocation @ thrust
+    def qacc(self, quat, vel_world, omega, thrust, current_world):
+        """(world-frame acceleration of the CG, body angular acceleration): a = R (v̇ + ω × v)."""
         rot = self.rotation(quat)
         v_body = rot.T @ vel_world
-        nu_dot = self.acceleration(rot, np.concatenate([v_body, omega]), tau, current_world)
-        # body-frame ν̇ → world-frame acceleration of the CG: a = R (v̇ + ω × v)
-        vel_world = vel_world + dt * (rot @ (nu_dot[:3] + self.cross(omega, v_body)))
-        omega = omega + dt * nu_dot[3:]
-        pos = pos + dt * vel_world
-        # quaternion kinematics: rotate by ω dt about the body axis ω/|ω|
+        nu_dot = self.acceleration(rot, np.concatenate([v_body, omega]), self.allocation @ thrust, current_world)
+        return rot @ (nu_dot[:3] + self.cross(omega, v_body)), nu_dot[3:]
+
+    @staticmethod
+    def rotate(quat, omega, dt):
+        """quat ⊗ exp(ω dt / 2): rotate by ω dt about the body axis ω/|ω|, renormalised."""
         speed = math.sqrt(omega @ omega)
-        if speed > 0.0:
-            half = 0.5 * speed * dt
-            s = math.sin(half) / speed
-            w0, x0, y0, z0 = quat
-            w1, x1, y1, z1 = math.cos(half), s * omega[0], s * omega[1], s * omega[2]
-            quat = np.array(
-                [
-                    w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
-                    w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
-                    w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
-                    w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
-                ]
-            )
-            quat = quat / math.sqrt(quat @ quat)
-        return pos, quat, vel_world, omega, thrust
+        if speed == 0.0:
+            return quat
+        half = 0.5 * speed * dt
+        s = math.sin(half) / speed
+        w0, x0, y0, z0 = quat
+        w1, x1, y1, z1 = math.cos(half), s * omega[0], s * omega[1], s * omega[2]
+        quat = np.array(
+            [
+                w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
+                w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+                w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
+                w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
+            ]
+        )
+        return quat / math.sqrt(quat @ quat)
+
+    def step(self, pos, quat, vel_world, omega, thrust, target, current_world):
+        """One physics step of dt by `self.integrator`; returns the new (pos, quat, vel_world, omega, thrust)."""
+        dt = self.dt
+        if self.integrator == "euler":  # MuJoCo's semi-implicit Euler: velocity first, then position
+            thrust = thrust + self.alpha * (target - thrust)
+            acc, omega_dot = self.qacc(quat, vel_world, omega, thrust, current_world)
+            vel_world = vel_world + dt * acc
+            omega = omega + dt * omega_dot
+            return pos + dt * vel_world, self.rotate(quat, omega, dt), vel_world, omega, thrust
+        # explicit midpoint, as marinejax.physics.substep
+        acc, omega_dot = self.qacc(quat, vel_world, omega, thrust, current_world)
+        vel_mid, omega_mid = vel_world + 0.5 * dt * acc, omega + 0.5 * dt * omega_dot
+        quat_mid = self.rotate(quat, omega, 0.5 * dt)
+        thrust_mid = thrust + self.alpha_half * (target - thrust)
+        acc, omega_dot = self.qacc(quat_mid, vel_mid, omega_mid, thrust_mid, current_world)
+        return (pos + dt * vel_mid, self.rotate(quat, omega_mid, dt), vel_world + dt * acc, omega + dt * omega_dot,
+                thrust + self.alpha * (target - thrust))
 
     def rollout(self, throttles: np.ndarray, substeps: int, current_world=None) -> np.ndarray:
         """One vehicle from rest at the origin, level; throttles (T, N) held for `substeps` physics
@@ -236,7 +255,7 @@ def _bare_rollout():
     from marinejax.physics import to_physics, with_timestep
 
     @functools.partial(jax.jit, static_argnames=("substeps",))
-    def bare(sys, state, commands, control_dt, substeps):
+    def bare(sys, state, commands, control_dt, substeps):  # one mjx.step per physics step
         sys = with_timestep(sys, control_dt / substeps)
         model = sys.model
 
@@ -258,7 +277,7 @@ def _bare_rollout():
 
 
 
-def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int, seed: int = 0) -> dict:
+def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int, integrator: str, seed: int = 0) -> dict:
     import jax
     import jax.numpy as jnp
 
@@ -273,10 +292,10 @@ def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int
     bare = _bare_rollout()
 
     timed = time_calls({
-        "full": lambda: _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True),
+        "full": lambda: _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator),
         "bare": lambda: bare(sys_, state, commands, dt, substeps),
     })
-    out = _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True)
+    out = _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator)
     timed["finite"] = bool(np.all(np.isfinite(np.asarray(out.position))))
     return timed
 
@@ -305,7 +324,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"control steps per timed call (default 20; reduced automatically so that "
                         f"batch x steps <= {MAX_VEHICLE_CONTROL_STEPS})")
     p.add_argument("--control-dt", type=positive(float), default=0.05, help="control step in seconds (default 0.05)")
-    p.add_argument("--substeps", type=positive(int), default=5, help="physics steps per control step (default 5)")
+    p.add_argument("--substeps", type=positive(int), default=1, help="physics steps per control step (default 1)")
+    p.add_argument("--integrator", choices=INTEGRATORS, default=DEFAULT_INTEGRATOR,
+                   help=f"physics integrator (default {DEFAULT_INTEGRATOR}; 'euler' needs steps <= 0.02 s)")
     p.add_argument("--numpy-seconds", type=positive(float), default=5.0,
                    help="wall-clock budget of the NumPy baseline in seconds (default 5)")
     p.add_argument("--out", type=Path, default=None, help="also write the results as JSON to this path")
@@ -358,6 +379,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     physics_dt = args.control_dt / args.substeps
+    try:
+        check_integrator(args.integrator, physics_dt)
+    except ValueError as err:
+        parser.error(str(err))
     console.print("[bold]marinejax physics benchmark[/bold]")
     console.print(f"machine: {info['cpu']} | {info['cpu_count']} cores ({info['cpus_usable']} usable) | {info['platform']}"
                   + (f" | load average {info['load_average'][0]:.2f} at start (other work on the machine skews timings)"
@@ -365,18 +390,19 @@ def main(argv: list[str] | None = None) -> int:
     console.print(f"python {info['python']}, numpy {info['numpy']}, jax {info['jax']} (jaxlib {info['jaxlib']}), "
                   f"mujoco {info['mujoco']}; backend {info['backend']}, devices {info['devices']}")
     console.print(f"vehicle {vehicle.name} ({vehicle.num_thrusters} thrusters, parameter set {vehicle.param_set}); "
-                  f"control dt {args.control_dt:g} s x {args.substeps} substeps -> physics dt {physics_dt:g} s; "
+                  f"control dt {args.control_dt:g} s x {args.substeps} substeps -> physics dt {physics_dt:g} s, "
+                  f"{args.integrator} integrator; "
                   f"random throttles in [-0.3, 0.3], seed 0")
     console.print("timings exclude compilation: one call compiles and warms up, then full and bare calls alternate "
                   f"(at least {MIN_TIMED_CALLS} each and {MIN_TIMED_SECONDS} s each); the best call of each is reported")
 
     # --- NumPy baseline: sanity check against marinejax, then throughput -------------------------
-    npv = NumpyVehicle(vehicle, physics_dt)
+    npv = NumpyVehicle(vehicle, physics_dt, args.integrator)
     rng = np.random.default_rng(0)
     sanity_steps = max(1, round(SANITY_SECONDS / args.control_dt))
     sanity_cmd = rng.uniform(-0.3, 0.3, (sanity_steps, vehicle.num_thrusters))
     traj = marinejax.rollout(vehicle, jnp.asarray(sanity_cmd, jnp.float32), control_dt=args.control_dt,
-                             substeps=args.substeps)
+                             substeps=args.substeps, integrator=args.integrator)
     ref = np.asarray(traj.position, dtype=np.float64)
     mine = npv.rollout(sanity_cmd, args.substeps)
     diff = float(np.max(np.abs(ref - mine)))
@@ -399,7 +425,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for batch in args.batch_sizes:
         steps = min(args.steps, max(1, MAX_VEHICLE_CONTROL_STEPS // batch))
-        res = time_batch(vehicle, batch, steps, args.control_dt, args.substeps)
+        res = time_batch(vehicle, batch, steps, args.control_dt, args.substeps, args.integrator)
         full_s, bare_s = res["full"]["seconds"], res["bare"]["seconds"]
         work = batch * steps * args.substeps
         sim = batch * steps * args.control_dt
@@ -450,6 +476,7 @@ def main(argv: list[str] | None = None) -> int:
             "machine": info,
             "settings": {"vehicle": vehicle.name, "param_set": vehicle.param_set, "batch_sizes": args.batch_sizes,
                          "steps": args.steps, "control_dt": args.control_dt, "substeps": args.substeps,
+                         "integrator": args.integrator,
                          "physics_dt": physics_dt, "numpy_seconds": args.numpy_seconds,
                          "max_vehicle_control_steps": MAX_VEHICLE_CONTROL_STEPS},
             "numpy": {**npres, "real_time_factor": numpy_rtf},

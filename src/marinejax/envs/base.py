@@ -6,7 +6,17 @@ pure and jit/vmap-able; names and sizes are resolved at construction.
 
 State.info holds all episode randomness, so a full reset re-draws it:
   rng, time (s since episode start), task (the target or trajectory), current (CurrentState),
-  dynamics (the physical parameters of this episode), last_action.
+  dynamics (the physical parameters of this episode), last_action, integral (the integrated
+  error, see below).
+
+Integral action: a policy that sees only the present error cannot remove a steady offset (net
+weight, a current, a disturbance force) that it was not trained on. Every task therefore appends to
+its observation a leaky, clipped integral of the tracking error, as a PI controller's integrator:
+  I ← exp(−dt/T) I + dt · clip(e, ±integral_error_clip),  observed as [R^T I_position, I_heading],
+with e the world-frame position error (m) and the heading error (rad), T = integral_time_constant.
+Clipping the integrand and the leak bound the wind-up during a long approach (|I| ≤ T · clip), so
+the integral is useful again within T seconds of arriving. `integral_time_constant = 0` drops the
+4 components.
 """
 
 from __future__ import annotations
@@ -24,7 +34,15 @@ from marinejax.envs.config import check_range
 from marinejax.envs.current import CurrentConfig, sample_current, step_current
 from marinejax.envs.randomization import RandomizationConfig, apply_dynamics, nominal_dynamics, sample_dynamics
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
-from marinejax.physics import COMMAND_MODES, VehicleState, control_step, from_physics, to_physics, with_timestep
+from marinejax.physics import (
+    COMMAND_MODES,
+    VehicleState,
+    check_integrator,
+    control_step,
+    from_physics,
+    to_physics,
+    with_timestep,
+)
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -67,11 +85,14 @@ class EnvConfig:
 
     param_set: str | None = None  # vehicle parameter set (None: the vehicle's default)
     control_dt: float = 0.05  # s per action (20 Hz)
-    substeps: int = 5  # physics steps per action (10 ms)
+    substeps: int = 1  # physics steps per action (50 ms with the second-order midpoint integrator)
+    integrator: str = "midpoint"  # "midpoint" (second order) or "euler" (first order, needs <= 0.02 s steps)
     episode_length: int = 200  # actions per episode (truncation, applied by the training wrapper)
     action_mode: str = "thrusters"  # thrusters: throttles in [−1, 1]; wrench: body wrench / wrench_scale
     wrench_scale: tuple[float, float, float, float, float, float] = (80.0, 80.0, 100.0, 15.0, 15.0, 15.0)  # N, N m
     max_distance: float = 5.0  # m from the target: the episode terminates beyond
+    integral_time_constant: float = 2.0  # s, leak of the integrated error in the observation; 0: not observed
+    integral_error_clip: float = 0.2  # m and rad, per axis: the integrand is clipped to ± this
     reward: RewardConfig = RewardConfig()
     reset: ResetConfig = ResetConfig()
     current: CurrentConfig = CurrentConfig()
@@ -80,13 +101,14 @@ class EnvConfig:
     def __post_init__(self):
         if self.action_mode not in COMMAND_MODES:
             raise ValueError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
-        for name in ("control_dt", "max_distance"):
+        for name in ("control_dt", "max_distance", "integral_error_clip"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"config '{name}' must be > 0, got {getattr(self, name)}")
         if self.substeps < 1 or self.episode_length < 1:
             raise ValueError(f"config 'substeps' and 'episode_length' must be >= 1, got {self.substeps}, {self.episode_length}")
-        if self.control_dt / self.substeps > 0.02:
-            raise ValueError(f"physics step control_dt/substeps = {self.control_dt / self.substeps:.4f} s exceeds 0.02 s")
+        check_integrator(self.integrator, self.control_dt / self.substeps)
+        if not self.integral_time_constant >= 0:
+            raise ValueError(f"config 'integral_time_constant' must be >= 0 (0: off), got {self.integral_time_constant}")
         if any(s <= 0 for s in self.wrench_scale):
             raise ValueError(f"config 'wrench_scale' must be positive, got {self.wrench_scale}")
         for name in ("position", "depth", "tilt", "yaw", "velocity", "angular_velocity"):
@@ -152,8 +174,11 @@ class MarineEnv(Env):
             "current": current,
             "dynamics": dynamics,
             "last_action": jnp.zeros(self.action_size),
+            "integral": jnp.zeros(4),
         }
-        obs, terms, errors = self._evaluate(from_physics(sys, ps), info, jnp.zeros(self.action_size))
+        vs = from_physics(sys, ps)
+        obs, terms, errors = self._evaluate(vs, info, jnp.zeros(self.action_size))
+        obs = self._with_integral(obs, vs, info["integral"])
         metrics = self._metrics(terms, errors, jnp.zeros(()), jnp.zeros(()))
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
@@ -167,12 +192,15 @@ class MarineEnv(Env):
         current = step_current(info["current"], k_cur, cfg.control_dt, cfg.current)
         sys = apply_dynamics(self.sys, info["dynamics"])
         command = action if cfg.action_mode == "thrusters" else action * self._wrench_scale
-        ps = control_step(sys, state.pipeline_state, command, current.value, cfg.substeps, cfg.action_mode)
+        ps = control_step(sys, state.pipeline_state, command, current.value, cfg.substeps, cfg.action_mode, cfg.integrator)
         finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
         # Never propagate a non-finite state: keep the last finite one and end the episode.
         ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.pipeline_state)
         info.update(rng=rng, time=info["time"] + cfg.control_dt, current=current)
-        obs, terms, errors = self._evaluate(from_physics(sys, ps), info, action)
+        vs = from_physics(sys, ps)
+        info["integral"] = self._integrate_error(info["integral"], vs, info)
+        obs, terms, errors = self._evaluate(vs, info, action)
+        obs = self._with_integral(obs, vs, info["integral"])
         info["last_action"] = action
         out = errors["position_error"] > cfg.max_distance
         nonfinite = 1.0 - finite.astype(jnp.float32)
@@ -185,6 +213,24 @@ class MarineEnv(Env):
         return state.replace(pipeline_state=ps, obs=jnp.where(finite, obs, 0.0), reward=reward, done=done, metrics=metrics, info=info)
 
     # --- helpers ------------------------------------------------------------------------
+    def _integrate_error(self, integral: jnp.ndarray, vs: VehicleState, info: dict) -> jnp.ndarray:
+        """Leaky, clipped integral (4,) of [world position error (m), heading error (rad)] (module docstring)."""
+        c = self.config
+        if c.integral_time_constant == 0:
+            return integral
+        error = jnp.concatenate([
+            self.target_position(info) - vs.position,
+            heading_error(vs.quaternion, info["task"].yaw)[None],
+        ])
+        leak = math.exp(-c.control_dt / c.integral_time_constant)
+        return leak * integral + c.control_dt * jnp.clip(error, -c.integral_error_clip, c.integral_error_clip)
+
+    def _with_integral(self, obs: jnp.ndarray, vs: VehicleState, integral: jnp.ndarray) -> jnp.ndarray:
+        """obs with the integral appended: position part in the body frame (m s), heading part (rad s)."""
+        if self.config.integral_time_constant == 0:
+            return obs
+        return jnp.concatenate([obs, quat_to_mat(vs.quaternion).T @ integral[:3], integral[3:]])
+
     def _metrics(self, terms, errors, nonfinite, out) -> dict[str, jnp.ndarray]:
         weights = self.config.reward
         metrics = {f"reward/{k}": getattr(weights, k) * v for k, v in terms.items()}

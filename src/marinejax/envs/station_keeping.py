@@ -3,13 +3,15 @@
 Target: position uniform in a box around (0, 0, −5) m (±`target_range` horizontally and vertically)
 and a yaw uniform in (−π, π]. The vehicle starts per `reset` around it.
 
-Observation (all in the body frame FLU unless stated), size 14 + number of actions:
+Observation (all in the body frame FLU unless stated), size 18 + number of actions:
   [0:3]   position error, target − position, m
   [3:6]   world up (0, 0, 1) expressed in the body frame (roll and pitch), unitless
   [6:8]   sin, cos of the heading error (target yaw − yaw)
   [8:11]  linear velocity, m/s
   [11:14] angular velocity, rad/s
-  [14:]   last action
+  [14:-4] last action
+  [-4:-1] leaky integral of the position error, m s (see `base`; absent if integral_time_constant = 0)
+  [-1]    leaky integral of the heading error, rad s
 Reward position term: 1/(1 + (d/position_scale)^2), the form of MarineGym's 0.5/(1 + (1.2 d)^2),
 with a 1 m scale by default.
 """

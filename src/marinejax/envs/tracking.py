@@ -3,13 +3,15 @@
 The reference moves along the path at the episode's speed after a smooth ramp; the vehicle starts
 near the path's start point, and holds a heading drawn per episode (the BlueROV2 is holonomic).
 
-Observation (body frame FLU unless stated), size 3·m + 14 + number of actions, m = num_reference_points:
+Observation (body frame FLU unless stated), size 3·m + 18 + number of actions, m = num_reference_points:
   [0:3m]       reference position at t, t + s, …, t + (m−1)s minus position, m (s = reference_spacing)
   [3m:3m+3]    reference velocity at t, m/s
   [3m+3:3m+6]  world up in the body frame
   [3m+6:3m+8]  sin, cos of the heading error
   [3m+8:3m+14] linear (m/s) and angular (rad/s) velocity
-  [3m+14:]     last action
+  [3m+14:-4]   last action
+  [-4:-1]      leaky integral of the position error to the reference at t, m s (see `base`)
+  [-1]         leaky integral of the heading error, rad s
 Reward position term: exp(−d/position_scale) (MarineGym's 0.5 exp(−1.6 d), rescaled to 1).
 """
 
