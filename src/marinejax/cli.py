@@ -1,10 +1,10 @@
 """The `marinejax` command line.
 
-    marinejax train ENV [--timesteps N] [--ppo KEY=VALUE ...] [--env KEY=VALUE ...] [--run-dir DIR]
+    marinejax train ENV [--timesteps N] [--seed S] [--target-error M] [--ppo KEY=VALUE ...] [--env KEY=VALUE ...]
     marinejax train --resume RUN_DIR
-    marinejax eval RUN_DIR_OR_CHECKPOINT [--episodes N] [--env KEY=VALUE ...] [--randomize] [--current MODE]
+    marinejax eval RUN_DIR_OR_CHECKPOINT [--checkpoint best|latest] [--episodes N] [--env KEY=VALUE ...]
     marinejax validate [--vehicle NAME] [--param-set SET] [--dt S]
-    marinejax bench physics|envs [flags]
+    marinejax bench physics|envs|training [flags]
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -50,6 +51,12 @@ def _validate(args: argparse.Namespace) -> int:
     return 0 if worst < 0.03 else 1
 
 
+def _check_target(value: float | None) -> float | None:
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise UserError(f"--target-error must be a positive number of metres, got {value}")
+    return value
+
+
 def _train(args: argparse.Namespace) -> int:
     from rich.console import Console
 
@@ -58,6 +65,7 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.train.runner import load_train_config, train
 
     console = Console()
+    target = _check_target(args.target_error)
     if args.resume:
         if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir:
             raise UserError("--resume takes only the run directory: the run's own settings are reused")
@@ -84,11 +92,16 @@ def _train(args: argparse.Namespace) -> int:
                   f"{config.ppo.num_envs} envs; compiling takes about a minute)")
     with TrainingProgress(console, config) as progress:
         try:
-            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update, randomize=args.randomize)
+            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update, randomize=args.randomize,
+                            target_error=target)
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
             return 130
+    if summary.get("time_to_target"):
+        t = summary["time_to_target"]
+        console.print(f"target {target} m met at {t['step']:,} env steps, {t['elapsed']:.0f} s "
+                      f"(evaluation error {t['window_error']:.4f} m); training stopped there")
     from marinejax.train.curves import plot_learning_curve
 
     plot_learning_curve(run_dir)
@@ -111,6 +124,7 @@ def _print_eval(console, result: dict[str, Any]) -> None:
         f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m) "
         f"{100 * result['success_rate']:.0f} %"
     )
+    console.print(f"  checkpoint: {result['checkpoint']} ({result['checkpoint_kind']})")
     for key in ("plot", "video", "video_error"):
         if key in result:
             console.print(f"  {key.replace('_', ' ')}: {result[key]}")
@@ -129,7 +143,7 @@ def _eval(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise UserError(f"--episodes must be >= 1, got {args.episodes}")
     result = evaluate_run(Path(args.path), out_dir=args.out, episodes=args.episodes, seed=args.seed,
-                          env_overrides=overrides, video=not args.no_video)
+                          env_overrides=overrides, video=not args.no_video, which=args.checkpoint)
     _print_eval(Console(), result)
     return 0
 
@@ -137,8 +151,10 @@ def _eval(args: argparse.Namespace) -> int:
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     if args.what == "physics":
         from marinejax.benchmarks.physics import main as bench_main
-    else:
+    elif args.what == "envs":
         from marinejax.benchmarks.envs import main as bench_main
+    else:
+        from marinejax.benchmarks.training import main as bench_main
     return bench_main(rest)
 
 
@@ -152,6 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--run-dir", help="where to write the run (default runs/<ENV>-<time>)")
     tr.add_argument("--timesteps", type=int, help="total env steps (overrides the tuned num_timesteps)")
     tr.add_argument("--seed", type=int, help="random seed")
+    tr.add_argument("--target-error", type=float, metavar="METRES",
+                    help="stop once the evaluation error (the task's window, as in `marinejax eval`) is at most this")
     tr.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting, e.g. --ppo learning_rate=1e-3")
     tr.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting, e.g. --env reward.effort=0.1")
     tr.add_argument("--randomize", action="store_true", help="Brax per-env-slot domain randomization during training")
@@ -161,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("eval", help="evaluate a run directory or checkpoint: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its newest checkpoint) or a checkpoint directory")
+    ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
+                    help="for a run directory: the checkpoint with the lowest evaluation error during training "
+                         "(default) or the newest")
     ev.add_argument("--episodes", type=int, default=64, help="number of episodes (default 64)")
     ev.add_argument("--seed", type=int, default=12345, help="seed of the evaluation episodes")
     ev.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for the evaluation")
@@ -175,8 +196,9 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--dt", type=float, default=0.05,
                      help="physics step in seconds, midpoint integrator (default 0.05, the env default)")
 
-    bench = sub.add_parser("bench", add_help=False, help="benchmarks: `marinejax bench physics|envs [flags]` (-h for their flags)")
-    bench.add_argument("what", choices=["physics", "envs"])
+    bench = sub.add_parser("bench", add_help=False,
+                           help="benchmarks: `marinejax bench physics|envs|training [flags]` (-h for their flags)")
+    bench.add_argument("what", choices=["physics", "envs", "training"])
     return parser
 
 

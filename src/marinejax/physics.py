@@ -218,6 +218,7 @@ def control_step(
     substeps: int,
     mode: CommandMode = "thrusters",
     integrator: Integrator = DEFAULT_INTEGRATOR,
+    external: jnp.ndarray | None = None,
 ) -> PhysicsState:
     """Hold `command` for `substeps` physics steps of sys.model.opt.timestep each, integrated by
     `integrator` ("midpoint" or "euler", see the module docstring).
@@ -225,6 +226,7 @@ def control_step(
     mode "thrusters": command (N,) throttles in [−1, 1] (clipped), through the T200 curve and lag.
     mode "wrench": command (6,) body wrench [N, N m], body frame FLU, applied directly.
     current_world: (3,) m/s ocean current, world frame, constant over the control step.
+    external: optional (6,) body wrench [N, N m] added in either mode (e.g. a disturbance).
     """
     if mode == "thrusters":
         thrusters = sys.thrusters
@@ -234,6 +236,8 @@ def control_step(
         target, wrench = jnp.zeros_like(ps.thrust), command
     else:
         raise ValueError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
+    if external is not None:
+        wrench = wrench + external
 
     def body(p, _):
         return substep(sys, p, target, wrench, current_world, integrator), None

@@ -279,3 +279,51 @@ def test_integral_settings_are_validated():
         E.make("BlueROV2Heavy-StationKeeping", integral_time_constant=-1.0)
     with pytest.raises(ValueError, match="integral_error_clip"):
         E.make("BlueROV2Heavy-StationKeeping", integral_error_clip=0.0)
+
+
+def test_disturbance_force_pushes_the_vehicle_along_its_world_direction():
+    """A constant world-frame force drawn per episode: the vehicle drifts along it (against the same
+    episode without it), and the variant envs switch on randomization, OU current and disturbance."""
+    calm = E.make("BlueROV2Heavy-StationKeeping", disturbance={"force": (4.0, 4.0), "torque": (0.0, 0.0)})
+    pushed = E.make("BlueROV2Heavy-StationKeeping", disturbance={"enabled": True, "force": (4.0, 4.0), "torque": (0.0, 0.0)})
+    key = jax.random.PRNGKey(7)
+    finals = []
+    for env in (calm, pushed):
+        state = jax.jit(env.reset)(key)
+        step = jax.jit(env.step)
+        for _ in range(60):  # 3 s
+            state = step(state, jnp.zeros(env.action_size))
+        finals.append(np.asarray(state.pipeline_state.data.qpos[:3]))
+    force = np.asarray(state.info["disturbance"][:3])
+    assert np.linalg.norm(force) == pytest.approx(4.0, rel=1e-5)
+    drift = finals[1] - finals[0]
+    assert np.linalg.norm(drift) > 0.05
+    assert drift @ force / (np.linalg.norm(drift) * np.linalg.norm(force)) > 0.95
+    c = E.get_default_config("BlueROV2Heavy-StationKeepingDisturbed")
+    assert c.randomization.enabled and c.current.mode == "ou" and c.disturbance.enabled
+    assert not E.get_default_config("BlueROV2Heavy-StationKeeping").disturbance.enabled
+    with pytest.raises(ValueError, match="disturbance.force"):
+        E.make("BlueROV2Heavy-StationKeeping", disturbance={"force": (-1.0, 2.0)})
+
+
+@pytest.mark.parametrize("name, max_distance", [("BlueROV2Heavy-StationKeeping", 5.0), ("BlueROV2Heavy-CircleTracking", 50.0)])
+def test_window_error_sums_to_the_evaluation_statistic(name, max_distance):
+    """Summed over an episode (as Brax's evaluation does), metrics['window_error'] is the mean position
+    error over the task's window, the statistic `marinejax eval` reports; early termination counts
+    as at least max_distance. (Tracking gets a wide work area so that an idle vehicle stays in it.)"""
+    env = E.make(name, max_distance=max_distance)
+    n = env.config.episode_length
+    keys = jax.random.split(jax.random.PRNGKey(5), 2)
+    actions = jnp.zeros((2, n, env.action_size)).at[1].set(1.0)  # row 1: full throttle leaves the work area
+    _, (_, _, done, metrics) = episode_fn(env)(keys, actions)
+    time = env.config.control_dt * np.arange(1, n + 1)
+    window = np.asarray(env.error_window(time))
+    assert 0 < window.sum() < n
+    err = np.asarray(metrics["position_error"][0])
+    assert not np.asarray(done[0]).any()
+    assert float(np.sum(metrics["window_error"][0])) == pytest.approx(err[window].mean(), rel=1e-5)
+    if max_distance > 10:
+        return
+    first_done = int(np.argmax(np.asarray(done[1]) > 0))
+    assert np.asarray(done[1]).any()
+    assert float(np.sum(metrics["window_error"][1][: first_done + 1])) >= env.config.max_distance

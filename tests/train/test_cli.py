@@ -41,7 +41,9 @@ def test_train_writes_a_complete_run_directory(run_dir):
     assert config["env_config"]["episode_length"] == 20
     records = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     assert [r["step"] for r in records] == sorted(r["step"] for r in records) and records[-1]["step"] >= 1600
-    assert "eval/episode_position_error" in records[-1]
+    assert "eval/episode_position_error" in records[-1] and "eval/episode_window_error" in records[-1]
+    best = json.loads((run_dir / "best.json").read_text())
+    assert best["window_error"] == min(r["eval/episode_window_error"] for r in records if r["step"] > 0)
     checkpoints = sorted((run_dir / "checkpoints").iterdir())
     assert len(checkpoints) == 2 and int(checkpoints[-1].name) >= 1600
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -58,6 +60,9 @@ def test_eval_loads_the_run_and_writes_summary_plot_video(run_dir, tmp_path):
     assert result["episodes"] == 3 and result["env_overrides"] == {"randomization.enabled": True, "current.mode": "constant"}
     assert 0 <= result["position_error_mean_m"] < 10 and (tmp_path / "paths.png").stat().st_size > 10_000
     assert "position error" in proc.stdout
+    assert "best (lowest evaluation error during training)" in proc.stdout
+    best = json.loads((run_dir / "best.json").read_text())
+    assert result["checkpoint"].endswith(f"{best['step']:012d}")
 
 
 @pytest.mark.slow
@@ -84,12 +89,21 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "num_envs"], "--ppo expects KEY=VALUE"),
         (["eval", "/no/such/run"], "no such run directory or checkpoint"),
         (["train", "--resume", "/no/such/run"], "is not a run directory"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "-0.01"], "--target-error must be a positive"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "nan"], "--target-error must be a positive"),
+        (["eval", "BlueROV2Heavy-StationKeeping", "--checkpoint", "first"], "invalid choice: 'first'"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "0"], "expected a positive integer, got 0"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "-1"], "expected a positive number of metres"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "inf"], "expected a positive number of metres"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
     ],
 )
 def test_user_mistakes_exit_2_with_one_line_and_no_traceback(args, message):
     proc = marinejax(*args, timeout=120)
     assert proc.returncode == 2
     assert message in proc.stderr and "Traceback" not in proc.stderr
+    if args[0] == "bench":
+        assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
 
 
 @pytest.mark.slow
@@ -102,3 +116,36 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
             f.write_bytes(b"garbage")
     proc = marinejax("eval", str(run), "--no-video", "--episodes", "2", timeout=300)
     assert proc.returncode == 2 and "could not be read" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.slow
+def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_path):
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(tmp_path / "t"), "--target-error", "100",
+                     "--no-video", *TINY)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    summary = json.loads((tmp_path / "t" / "summary.json").read_text())
+    records = [json.loads(line) for line in (tmp_path / "t" / "metrics.jsonl").read_text().splitlines()]
+    first = next(r for r in records if r["step"] > 0)
+    assert summary["status"] == "target reached" and summary["time_to_target"]["step"] == first["step"]
+    assert records[-1]["step"] == first["step"] < 1600  # stopped before the full budget
+    assert "target 100.0 m met at" in proc.stdout
+
+
+@pytest.mark.slow
+def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_path):
+    args = ["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "2", "--out-dir", str(tmp_path),
+            "--timesteps", "1600", "--episodes", "4", "--target-error", "100",
+            *[a for a in TINY if a not in ("--timesteps", "1600", "--episodes", "4")]]
+    proc = marinejax(*args)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((tmp_path / "results.json").read_text())
+    env = result["envs"][0]
+    assert env["seeds"] == [0, 1] and len(env["errors_m"]) == 2
+    assert env["error_worst_m"] == max(env["errors_m"]) and env["error_median_m"] <= env["error_worst_m"]
+    assert env["reached_target_during_training"] == 2 and env["target_steps_median"] > 0
+    rows = (tmp_path / "results.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[0].startswith("env,seed,")
+    assert (tmp_path / "BlueROV2Heavy-StationKeeping-seeds.png").stat().st_size > 10_000
+    assert "median error" in proc.stdout
+    again = marinejax(*args)
+    assert again.returncode == 0 and again.stdout.count("finished earlier, reusing") == 2

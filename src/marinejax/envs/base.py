@@ -6,8 +6,8 @@ pure and jit/vmap-able; names and sizes are resolved at construction.
 
 State.info holds all episode randomness, so a full reset re-draws it:
   rng, time (s since episode start), task (the target or trajectory), current (CurrentState),
-  dynamics (the physical parameters of this episode), last_action, integral (the integrated
-  error, see below).
+  dynamics (the physical parameters of this episode), disturbance (a constant external force and
+  torque, `envs.disturbance`), last_action, integral (the integrated error, see below).
 
 Integral action: a policy that sees only the present error cannot remove a steady offset (net
 weight, a current, a disturbance force) that it was not trained on. Every task therefore appends to
@@ -28,10 +28,12 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from brax.envs.base import Env, State
 
 from marinejax.envs.config import check_range
 from marinejax.envs.current import CurrentConfig, sample_current, step_current
+from marinejax.envs.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
 from marinejax.envs.randomization import RandomizationConfig, apply_dynamics, nominal_dynamics, sample_dynamics
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import (
@@ -97,6 +99,7 @@ class EnvConfig:
     reset: ResetConfig = ResetConfig()
     current: CurrentConfig = CurrentConfig()
     randomization: RandomizationConfig = RandomizationConfig()
+    disturbance: DisturbanceConfig = DisturbanceConfig()
 
     def __post_init__(self):
         if self.action_mode not in COMMAND_MODES:
@@ -122,9 +125,17 @@ def heading_error(quat: jnp.ndarray, target_yaw: jnp.ndarray) -> jnp.ndarray:
 
 
 class MarineEnv(Env):
-    """Base of the registered tasks: a Brax Env (reset(rng) -> State, step(state, action) -> State)."""
+    """Base of the registered tasks: a Brax Env (reset(rng) -> State, step(state, action) -> State).
+
+    Besides `position_error` (m, every step), every task logs `window_error`: the position error
+    weighted so that its sum over an episode is the mean error over the task's evaluation window
+    (`error_window`), the statistic `marinejax eval` reports. An episode that ends early adds
+    `max_distance` on its last step, so it can never look like a success. Brax's evaluation sums
+    metrics over episodes, so `eval/episode_window_error` during training is the same statistic.
+    """
 
     config_class = EnvConfig
+    error_window_description = "every step"  # what `error_window` selects, for reports
 
     def __init__(self, vehicle: str, config: EnvConfig):
         self.config = config
@@ -134,6 +145,13 @@ class MarineEnv(Env):
         n = self.vehicle.num_thrusters
         self._action_size = n if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+        times = config.control_dt * np.arange(1, config.episode_length + 1)
+        self._window_steps = int(np.sum(self.error_window(times)))
+        if self._window_steps == 0:
+            raise ValueError(
+                f"episode of {config.episode_length} steps x {config.control_dt} s has no step in the evaluation "
+                f"window ({self.error_window_description}); use a longer episode_length"
+            )
 
     @classmethod
     def default_config(cls) -> EnvConfig:
@@ -160,7 +178,7 @@ class MarineEnv(Env):
 
     def reset(self, rng: jax.Array) -> State:
         cfg = self.config
-        rng, k_task, k_pose, k_cur, k_dyn = jax.random.split(rng, 5)
+        rng, k_task, k_pose, k_cur, k_dyn, k_dist = jax.random.split(rng, 6)
         task = self._sample_task(k_task)
         current = sample_current(k_cur, cfg.current)
         dynamics = sample_dynamics(k_dyn, self.sys, cfg.randomization) if cfg.randomization.enabled else nominal_dynamics(self.sys)
@@ -175,11 +193,13 @@ class MarineEnv(Env):
             "dynamics": dynamics,
             "last_action": jnp.zeros(self.action_size),
             "integral": jnp.zeros(4),
+            "disturbance": sample_disturbance(k_dist, cfg.disturbance),
         }
         vs = from_physics(sys, ps)
         obs, terms, errors = self._evaluate(vs, info, jnp.zeros(self.action_size))
         obs = self._with_integral(obs, vs, info["integral"])
         metrics = self._metrics(terms, errors, jnp.zeros(()), jnp.zeros(()))
+        metrics["window_error"] = jnp.zeros(())
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
@@ -192,7 +212,12 @@ class MarineEnv(Env):
         current = step_current(info["current"], k_cur, cfg.control_dt, cfg.current)
         sys = apply_dynamics(self.sys, info["dynamics"])
         command = action if cfg.action_mode == "thrusters" else action * self._wrench_scale
-        ps = control_step(sys, state.pipeline_state, command, current.value, cfg.substeps, cfg.action_mode, cfg.integrator)
+        external = None
+        if cfg.disturbance.enabled:
+            rot = quat_to_mat(from_physics(sys, state.pipeline_state).quaternion)
+            external = body_wrench(info["disturbance"], rot)
+        ps = control_step(sys, state.pipeline_state, command, current.value, cfg.substeps, cfg.action_mode,
+                          cfg.integrator, external)
         finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
         # Never propagate a non-finite state: keep the last finite one and end the episode.
         ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.pipeline_state)
@@ -206,6 +231,8 @@ class MarineEnv(Env):
         nonfinite = 1.0 - finite.astype(jnp.float32)
         done = jnp.maximum(out.astype(jnp.float32), nonfinite)
         new = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
+        in_window = self.error_window(info["time"]).astype(jnp.float32) / self._window_steps
+        new["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
         reward = sum(v for k, v in new.items() if k.startswith("reward/")) * finite
         # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
         metrics = dict(state.metrics)
@@ -271,6 +298,11 @@ class MarineEnv(Env):
         )
 
     # --- task hooks ---------------------------------------------------------------------
+    def error_window(self, time):
+        """True where time (s since episode start, end of a step; NumPy or JAX array) is in the
+        window the evaluation statistics average over. Tasks override it with their own."""
+        return time >= 0.0
+
     def target_position(self, info: dict) -> jnp.ndarray:
         """Where the vehicle should be now (m, world): the station or the reference point at info['time']."""
         raise NotImplementedError

@@ -1,4 +1,9 @@
-"""Env names → constructors. Names are `<Vehicle>-<Task>`, e.g. `BlueROV2Heavy-StationKeeping`."""
+"""Env names → constructors. Names are `<Vehicle>-<Task>`, e.g. `BlueROV2Heavy-StationKeeping`.
+
+Every task also has a `<Task>Disturbed` variant: the same task whose default config draws, per
+episode, new physics (`randomization`), an Ornstein-Uhlenbeck current of up to 0.3 m/s
+(`current`) and a constant external force and torque (`disturbance`).
+"""
 
 from __future__ import annotations
 
@@ -10,11 +15,17 @@ from marinejax.envs.station_keeping import StationKeeping, StationKeepingConfig
 from marinejax.envs.tracking import Tracking, TrackingConfig
 
 VEHICLES = {"BlueROV2Heavy": "bluerov2_heavy", "BlueROV2": "bluerov2"}
-TASKS = {
+_BASE_TASKS = {
     "StationKeeping": (StationKeepingConfig, None),
     "CircleTracking": (TrackingConfig, "circle"),
     "HelixTracking": (TrackingConfig, "helix"),
     "LemniscateTracking": (TrackingConfig, "lemniscate"),
+}
+DISTURBED = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
+# task name → (config class, trajectory kind or None for station keeping, default overrides)
+TASKS = {
+    **{t: (c, k, {}) for t, (c, k) in _BASE_TASKS.items()},
+    **{f"{t}Disturbed": (c, k, DISTURBED) for t, (c, k) in _BASE_TASKS.items()},
 }
 
 
@@ -33,7 +44,8 @@ def _split(name: str) -> tuple[str, str]:
 def get_default_config(name: str) -> EnvConfig:
     """The default (immutable) config of env `name`."""
     _, task = _split(name)
-    return (StationKeeping if TASKS[task][1] is None else Tracking).default_config()
+    config_class, _, defaults = TASKS[task]
+    return apply_overrides(config_class(), defaults)
 
 
 def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> MarineEnv:
@@ -44,8 +56,8 @@ def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> Marine
     current={"mode": "ou"}). Unknown names or keys raise ValueError listing the valid ones.
     """
     vehicle, task = _split(name)
-    config_class, kind = TASKS[task]
-    config = config or config_class()
+    config_class, kind, _ = TASKS[task]
+    config = config or get_default_config(name)
     if not isinstance(config, config_class):
         raise ValueError(f"env {name!r} takes a {config_class.__name__}, got {type(config).__name__}")
     config = apply_overrides(config, overrides)

@@ -56,6 +56,11 @@ class TrackingTask:
 
 class Tracking(MarineEnv):
     config_class = TrackingConfig
+    error_window_description = "after the first 2 s"
+
+    def error_window(self, time):
+        """After the first 2 s, once the reference has ramped up to speed."""
+        return time > 2.0 + 0.5 * self.config.control_dt  # half a step of margin for float32 time
 
     def __init__(self, vehicle: str, kind: str, config: TrackingConfig):
         self.kind = kind

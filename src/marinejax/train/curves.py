@@ -6,8 +6,18 @@ import json
 from pathlib import Path
 
 
+def evaluation_error(record: dict) -> float | None:
+    """The evaluation error of a metrics.jsonl record (m): the task's window error (what `marinejax
+    eval` reports), or for runs from before it was logged, the mean error over whole episodes."""
+    if "eval/episode_window_error" in record:
+        return record["eval/episode_window_error"]
+    if "eval/episode_position_error" in record:
+        return record["eval/episode_position_error"] / max(record.get("eval/avg_episode_length", 1.0), 1.0)
+    return None
+
+
 def plot_learning_curve(run_dir: Path) -> Path:
-    """curve.png: evaluation return and mean position error against env steps and wall time."""
+    """curve.png: evaluation return and evaluation error against env steps and wall time."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -19,7 +29,7 @@ def plot_learning_curve(run_dir: Path) -> Path:
     steps = [r["step"] for r in records]
     minutes = [r["elapsed"] / 60 for r in records]
     ret = [r["eval/episode_reward"] for r in records]
-    err = [r["eval/episode_position_error"] / max(r.get("eval/avg_episode_length", 1.0), 1.0) for r in records]
+    err = [evaluation_error(r) for r in records]
     fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharey="row")
     for col, (x, label) in enumerate([(steps, "env steps"), (minutes, "wall time (min, compilation included)")]):
         axes[0, col].plot(x, ret, "o-", ms=3)
@@ -27,7 +37,7 @@ def plot_learning_curve(run_dir: Path) -> Path:
         axes[1, col].set_yscale("log")
         axes[1, col].set_xlabel(label)
     axes[0, 0].set_ylabel("evaluation return")
-    axes[1, 0].set_ylabel("mean position error (m)\n(over evaluation episodes)")
+    axes[1, 0].set_ylabel("evaluation position error (m)\n(task window, mean over episodes)")
     config = json.loads((run_dir / "config.json").read_text())
     fig.suptitle(f"{config['env']}: {run_dir.name}")
     fig.tight_layout()

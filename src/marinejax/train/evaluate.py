@@ -21,7 +21,6 @@ import jax
 import numpy as np
 
 from marinejax.envs.base import MarineEnv
-from marinejax.envs.station_keeping import StationKeeping
 from marinejax.train.hyperparams import TrainConfig
 
 SUCCESS_M = 0.1  # m: an episode succeeds when its evaluated mean position error is below this
@@ -37,10 +36,19 @@ def shipped_policies() -> dict[str, Path]:
     return {p.name: p for p in sorted(root.iterdir()) if (p / "config.json").exists()} if root.is_dir() else {}
 
 
-def resolve_checkpoint(path: Path | str) -> tuple[Path, Path]:
+CHECKPOINT_CHOICES = ("best", "latest")
+
+
+def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Path]:
     """(run directory, checkpoint step directory) for a run directory, a checkpoint directory, or the
-    name of an env with a shipped policy (e.g. "BlueROV2Heavy-StationKeeping")."""
-    from marinejax.train.runner import CHECKPOINTS, latest_checkpoint
+    name of an env with a shipped policy (e.g. "BlueROV2Heavy-StationKeeping").
+
+    For a run directory, `which` picks "best" (lowest evaluation error during training, from
+    best.json; the newest if the run has none) or "latest" (the newest checkpoint)."""
+    from marinejax.train.runner import CHECKPOINTS, best_checkpoint, latest_checkpoint
+
+    if which not in CHECKPOINT_CHOICES:
+        raise ValueError(f"unknown checkpoint choice {which!r}; valid: {list(CHECKPOINT_CHOICES)}")
 
     shipped = shipped_policies()
     if not Path(path).exists() and str(path) in shipped:
@@ -50,7 +58,7 @@ def resolve_checkpoint(path: Path | str) -> tuple[Path, Path]:
         raise CheckpointError(f"no such run directory or checkpoint: {path} (shipped policies: {sorted(shipped)})")
     path = path.resolve()  # orbax reads absolute paths only
     if (path / "config.json").exists():
-        ckpt = latest_checkpoint(path)
+        ckpt = (best_checkpoint(path) if which == "best" else None) or latest_checkpoint(path)
         if ckpt is None:
             raise CheckpointError(f"run directory {path} has no complete checkpoint in {path / CHECKPOINTS}")
         return path, ckpt
@@ -59,7 +67,7 @@ def resolve_checkpoint(path: Path | str) -> tuple[Path, Path]:
     raise CheckpointError(f"{path} is neither a run directory (with config.json) nor a checkpoint inside one")
 
 
-def load_policy(path: Path, env_overrides: dict[str, Any] | None = None):
+def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
     """(train config, env, deterministic policy fn obs -> action, checkpoint dir) from a run or checkpoint."""
     from brax.training import types
     from brax.training.acme import running_statistics
@@ -68,7 +76,7 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None):
 
     from marinejax.train.runner import build_env, load_train_config, network_factory
 
-    run_dir, ckpt = resolve_checkpoint(path)
+    run_dir, ckpt = resolve_checkpoint(path, which)
     try:
         config = load_train_config(run_dir)
     except (OSError, ValueError, KeyError, TypeError) as err:
@@ -125,20 +133,13 @@ def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict
     }
 
 
-def error_window(env: MarineEnv, time: np.ndarray) -> np.ndarray:
-    """Boolean mask of the time steps the statistics use."""
-    if isinstance(env, StationKeeping):
-        return time > time[-1] - 1.0 + 1e-9
-    return time > 2.0 + 1e-9
-
-
 def summarize(env: MarineEnv, result: dict[str, np.ndarray], success_m: float = SUCCESS_M) -> dict[str, Any]:
-    mask = error_window(env, result["time"])
+    mask = np.asarray(env.error_window(result["time"]))
     per_episode = result["error"][:, mask].mean(axis=1)
     ended = result["done"].max(axis=1) > 0
     return {
         "episodes": int(per_episode.size),
-        "window": "last 1 s of each episode" if isinstance(env, StationKeeping) else "after the first 2 s",
+        "window": env.error_window_description,
         "position_error_mean_m": float(per_episode.mean()),
         "position_error_median_m": float(np.median(per_episode)),
         "position_error_p95_m": float(np.percentile(per_episode, 95)),
@@ -204,16 +205,25 @@ def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: f
 
 
 def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
-                 env_overrides: dict[str, Any] | None = None, video: bool = True) -> dict[str, Any]:
-    """Evaluate a run directory or checkpoint; write eval.json, path PNG and video into out_dir."""
-    config, env, policy, ckpt = load_policy(path, env_overrides)
-    run_dir = resolve_checkpoint(path)[0]
+                 env_overrides: dict[str, Any] | None = None, video: bool = True, which: str = "best") -> dict[str, Any]:
+    """Evaluate a run directory or checkpoint (`which`: "best" or "latest" of a run directory);
+    write eval.json, path PNG and video into out_dir."""
+    from marinejax.train.runner import best_checkpoint, latest_checkpoint
+
+    config, env, policy, ckpt = load_policy(path, env_overrides, which)
+    run_dir = resolve_checkpoint(path, which)[0]
+    if ckpt == best_checkpoint(run_dir):
+        kind = "best (lowest evaluation error during training)"
+    elif ckpt == latest_checkpoint(run_dir):
+        kind = "newest"
+    else:
+        kind = "as given"
     if out_dir is None and run_dir.parent == Path(str(resources.files("marinejax"))) / "policies":
         out_dir = Path("runs") / f"eval-{config.env}"  # never write into the installed package
     out_dir = Path(out_dir) if out_dir else run_dir / "eval"
     out_dir.mkdir(parents=True, exist_ok=True)
     result = rollout_policy(env, policy, episodes, seed)
-    summary = {"env": config.env, "checkpoint": str(ckpt), "env_overrides": env_overrides or {}, "seed": seed,
+    summary = {"env": config.env, "checkpoint": str(ckpt), "checkpoint_kind": kind, "env_overrides": env_overrides or {}, "seed": seed,
                **summarize(env, result)}
     summary["plot"] = str(plot_paths(result, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir / "paths.png"))
     if video:

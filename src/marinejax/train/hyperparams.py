@@ -64,18 +64,22 @@ class TrainConfig:
     env_overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
 
-# Tuned on BlueROV2Heavy-StationKeeping on the 2-core CPU (see the README's results table).
+# Tuned on BlueROV2Heavy-StationKeeping on the 2-core CPU; judged over seeds 0-4 (README results).
+# With the second-order physics the env costs little, so 12 M env steps fit in about 3.5 minutes
+# (about 80 k env steps/s after compilation): 4 M steps left 2 of 2 seeds tried stuck in a 0.25 m
+# orbit around the target, 12 M let each break out (see the closing notes of issue 7).
 _STATION = PPOConfig(
-    num_timesteps=4_000_000, num_minibatches=4, unroll_length=10, learning_rate=1e-3, entropy_cost=1e-4,
-    discounting=0.98, init_noise_std=0.5, num_evals=10,
+    num_timesteps=12_000_000, num_minibatches=4, unroll_length=10, learning_rate=1e-3, entropy_cost=1e-4,
+    discounting=0.98, init_noise_std=0.5, num_evals=20,
 )
-_TRACKING = _STATION  # the same settings reach sub-millimetre tracking on the circle (README)
+_TRACKING = dataclasses.replace(_STATION, num_timesteps=4_000_000, num_evals=10)
 _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "StationKeeping": (_STATION, {}),
     "CircleTracking": (_TRACKING, {}),
     "HelixTracking": (_TRACKING, {}),
     "LemniscateTracking": (_TRACKING, {}),
 }
+_TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.items())})
 
 
 def tuned_config(env_name: str) -> TrainConfig:

@@ -7,13 +7,15 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from marinejax.train.curves import evaluation_error
 from marinejax.train.hyperparams import TrainConfig
 
 
 class TrainingProgress:
     """Context manager; `update(record)` takes the records `runner.train` passes after each evaluation.
 
-    Position error is the evaluation episodes' mean over every step (the approach included)."""
+    Position error is the statistic of `marinejax eval` (the task's window: last 1 s of station
+    keeping, after 2 s of tracking), averaged over the evaluation episodes; "best" is the lowest so far."""
 
     def __init__(self, console: Console, config: TrainConfig):
         self.total = config.ppo.num_timesteps
@@ -32,6 +34,7 @@ class TrainingProgress:
         self.task = None
         self.console = console
         self.last_step, self.last_time = 0, 0.0
+        self.best = None
 
     def __enter__(self) -> "TrainingProgress":
         self.progress.__enter__()
@@ -47,12 +50,14 @@ class TrainingProgress:
         if sps is None and step > self.last_step and elapsed > self.last_time:
             sps = (step - self.last_step) / (elapsed - self.last_time)
         self.last_step, self.last_time = step, elapsed
-        length = record.get("eval/avg_episode_length") or 1.0
-        err = record.get("eval/episode_position_error")
+        err = evaluation_error(record)
+        if err is not None and record["step"] > 0:
+            self.best = err if self.best is None else min(self.best, err)
         self.progress.update(
             self.task,
             completed=min(step, self.total),
             sps=f"{sps:,.0f}" if sps else "-",
             ret=f"{record['eval/episode_reward']:.1f}" if "eval/episode_reward" in record else "-",
-            err=f"{err / length:.3f} m" if err is not None else "-",
+            err=f"{err:.4f} m (best {self.best:.4f})" if err is not None and self.best is not None
+            else (f"{err:.4f} m" if err is not None else "-"),
         )

@@ -4,6 +4,7 @@ Run directory layout:
   config.json        the resolved env config, PPO settings, versions and machine
   metrics.jsonl      one line per evaluation: env steps, wall time, evaluation metrics
   checkpoints/<step> Brax PPO checkpoints (normalizer, policy, value params + network config)
+  best.json          the evaluated checkpoint with the lowest evaluation error so far
   curve.png          learning curve (return and position error vs env steps and wall time)
   summary.json       written when training ends (or is interrupted)
 """
@@ -29,6 +30,12 @@ from marinejax.envs.randomization import brax_randomization_fn
 from marinejax.train.hyperparams import PPOConfig, TrainConfig
 
 CHECKPOINTS = "checkpoints"
+BEST = "best.json"
+WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
+
+
+class _TargetReached(Exception):
+    """Raised from the progress callback to end ppo.train once the target error is met."""
 
 
 def network_factory(ppo: PPOConfig) -> Callable:
@@ -69,6 +76,16 @@ def latest_checkpoint(run_dir: Path) -> Path | None:
     return None
 
 
+def best_checkpoint(run_dir: Path) -> Path | None:
+    """The checkpoint named in the run's best.json (lowest evaluation error), or None."""
+    try:
+        best = json.loads((Path(run_dir) / BEST).read_text())
+    except (OSError, ValueError):
+        return None
+    path = Path(run_dir) / CHECKPOINTS / f"{int(best['step']):012d}"
+    return path if (path / "ppo_network_config.json").exists() else None
+
+
 def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
     from importlib.metadata import version
 
@@ -102,6 +119,8 @@ def train(
     resume: bool = False,
     on_eval: Callable[[dict[str, float]], None] | None = None,
     randomize: bool = False,
+    target_error: float | None = None,
+    stop_at_target: bool = True,
 ) -> dict[str, Any]:
     """Train `config` into `run_dir`; resume from its newest checkpoint when `resume`.
 
@@ -109,6 +128,10 @@ def train(
     across resumes), 'elapsed' (s of wall time, across resumes) and the evaluation metrics; the
     same record is appended to metrics.jsonl. On KeyboardInterrupt the newest checkpoint stays
     usable and the summary says 'interrupted'.
+
+    After every evaluation the checkpoint with the lowest `eval/episode_window_error` (m) is named in
+    best.json. With `target_error` (m), the summary records when that error first met the target
+    (env steps and wall seconds), and training stops there if `stop_at_target`.
     """
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
     from brax.training.agents.ppo import train as ppo_train
@@ -143,6 +166,9 @@ def train(
     )
     start = time.monotonic()
     records: list[dict[str, float]] = []
+    reached: dict[str, float] = {}
+    best_path = run_dir / BEST
+    best = json.loads(best_path.read_text()) if resume and best_path.exists() else None
 
     def progress(step: int, metrics: dict[str, Any]) -> None:
         if step == 0 and steps_done > 0:
@@ -151,8 +177,17 @@ def train(
         records.append(record)
         with (run_dir / "metrics.jsonl").open("a") as f:
             f.write(json.dumps(record) + "\n")
+        nonlocal best
+        err = record.get(WINDOW_ERROR)
+        if err is not None and record["step"] > 0 and (best is None or err < best["window_error"]):
+            best = {"step": record["step"], "window_error": err, "elapsed": record["elapsed"]}
+            best_path.write_text(json.dumps(best, indent=2))
         if on_eval:
             on_eval(record)
+        if target_error is not None and err is not None and record["step"] > 0 and err <= target_error and not reached:
+            reached.update(step=record["step"], elapsed=record["elapsed"], window_error=err)
+            if stop_at_target:
+                raise _TargetReached
 
     def save_params(step: int, make_policy, params) -> None:
         if step > 0:
@@ -191,6 +226,8 @@ def train(
         )
     except KeyboardInterrupt:
         status = "interrupted"
+    except _TargetReached:
+        status = "target reached"
     summary = {
         "status": status,
         "env": config.env,
@@ -198,6 +235,9 @@ def train(
         "wall_time_s": records[-1]["elapsed"] if records else elapsed_before,
         "last_eval": records[-1] if records else None,
         "checkpoint": str(latest_checkpoint(run_dir)) if latest_checkpoint(run_dir) else None,
+        "best": best,
+        "target_error": target_error,
+        "time_to_target": reached or None,
     }
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
     if status == "interrupted":
