@@ -92,9 +92,9 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "-0.01"], "--target-error must be a positive"),
         (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "nan"], "--target-error must be a positive"),
         (["eval", "BlueROV2Heavy-StationKeeping", "--checkpoint", "first"], "invalid choice: 'first'"),
-        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "0"], "expected a positive integer, got 0"),
-        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "-1"], "expected a positive number of metres"),
-        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "inf"], "expected a positive number of metres"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "0"], "expected a positive int, got '0'"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "-1"], "expected a positive float, got '-1'"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "inf"], "expected a positive float, got 'inf'"),
         (["bench", "training", "BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
     ],
 )

@@ -24,7 +24,8 @@ def test_short_station_keeping_training_lowers_the_position_error(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking", "BlueROV2Heavy-HelixTracking", "BlueROV2Heavy-LemniscateTracking"])
+@pytest.mark.parametrize("env_name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking", "BlueROV2Heavy-HelixTracking",
+                                      "BlueROV2Heavy-LemniscateTracking", "BlueROV2Heavy-StationKeepingDisturbed"])
 def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
     run = shipped_policies()[env_name]
     recorded = json.loads((run / "eval.json").read_text())
@@ -44,3 +45,15 @@ def test_tuned_station_keeping_recipe_lands_on_held_out_seeds(seed, tmp_path):
     row = run_seed("BlueROV2Heavy-StationKeeping", seed, tmp_path / "run", {}, {}, 0.02, 64, log=lambda _: None)
     assert row["error_mean_m"] <= 0.02, row
     assert row["success_rate"] == 1.0, row
+
+
+@pytest.mark.slow
+def test_disturbance_trained_policy_beats_the_nominal_one_under_disturbance(tmp_path):
+    """Both shipped station-keeping policies on the same 64 disturbed episodes (new physics, OU current,
+    constant force and torque each): the one trained under disturbance holds station clearly better."""
+    disturbed = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
+    nominal = evaluate_run("BlueROV2Heavy-StationKeeping", out_dir=tmp_path / "n", env_overrides=disturbed, video=False)
+    robust = evaluate_run("BlueROV2Heavy-StationKeepingDisturbed", out_dir=tmp_path / "d", video=False)
+    assert robust["env_overrides"] == {} and nominal["seed"] == robust["seed"]
+    assert robust["position_error_median_m"] <= 0.03 and robust["position_error_p95_m"] <= 0.06
+    assert robust["position_error_mean_m"] < 0.5 * nominal["position_error_mean_m"], (robust, nominal)

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -29,29 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from marinejax.benchmarks.common import machine_info
+from marinejax.benchmarks.common import machine_info, positive
 
 DEFAULT_TARGET_M = 0.02
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value
-
-
-def _target(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of metres, got {text}")
-    return value
 
 
 class _Parser(argparse.ArgumentParser):
@@ -65,14 +44,14 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="marinejax bench training", description=__doc__.splitlines()[0])
     p.add_argument("envs", nargs="+", metavar="ENV", help="env names (see marinejax.list_envs())")
-    p.add_argument("--seeds", type=_positive_int, default=5, help="train seeds 0..N-1 (default 5)")
+    p.add_argument("--seeds", type=positive(int), default=5, help="train seeds 0..N-1 (default 5)")
     p.add_argument("--out-dir", type=Path, default=Path("runs/bench-training"), help="where runs and results go")
-    p.add_argument("--target-error", type=_target, default=DEFAULT_TARGET_M,
+    p.add_argument("--target-error", type=positive(float), default=DEFAULT_TARGET_M,
                    help=f"error (m) for the time-to-target figures (default {DEFAULT_TARGET_M})")
-    p.add_argument("--timesteps", type=_positive_int, help="env steps per run (default: the tuned value)")
+    p.add_argument("--timesteps", type=positive(int), help="env steps per run (default: the tuned value)")
     p.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting for every run")
     p.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for every run")
-    p.add_argument("--episodes", type=_positive_int, default=64, help="evaluation episodes per seed (default 64)")
+    p.add_argument("--episodes", type=positive(int), default=64, help="evaluation episodes per seed (default 64)")
     return p
 
 
