@@ -114,7 +114,7 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
     for f in newest.rglob("*"):
         if f.is_file() and f.name != "ppo_network_config.json":
             f.write_bytes(b"garbage")
-    proc = marinejax("eval", str(run), "--no-video", "--episodes", "2", timeout=300)
+    proc = marinejax("eval", str(run), "--checkpoint", "latest", "--no-video", "--episodes", "2", timeout=300)
     assert proc.returncode == 2 and "could not be read" in proc.stderr and "Traceback" not in proc.stderr
 
 
