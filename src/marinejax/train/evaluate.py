@@ -211,7 +211,7 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     from marinejax.train.runner import best_checkpoint, latest_checkpoint
 
     config, env, policy, ckpt = load_policy(path, env_overrides, which)
-    run_dir = resolve_checkpoint(path, which)[0]
+    run_dir = ckpt.parent.parent  # checkpoints live in <run>/checkpoints/<step>
     if ckpt == best_checkpoint(run_dir):
         kind = "best (lowest evaluation error during training)"
     elif ckpt == latest_checkpoint(run_dir):
