@@ -4,6 +4,12 @@ Layers, each importing only those before it: vehicle (MJCF + parameters) → hyd
 physics (MJX step, rollout) → envs (tasks, wrappers, Gymnasium adapter) → train (PPO, CLI).
 """
 
+from marinejax import _compat
+from marinejax._quiet_import import import_mjx_quietly
+
+import_mjx_quietly()  # before anything imports brax or mujoco.mjx
+_compat.install()  # jax.device_put_replicated for brax 0.14.2 on jax >= 0.10 (only where missing)
+
 from marinejax.envs import get_default_config, list_envs, make
 from marinejax.envs.gym_adapter import register_gymnasium_envs
 from marinejax.physics import (

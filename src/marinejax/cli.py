@@ -5,6 +5,10 @@
     marinejax eval RUN_DIR_OR_CHECKPOINT [--checkpoint best|latest] [--episodes N] [--env KEY=VALUE ...]
     marinejax validate [--vehicle NAME] [--param-set SET] [--dt S]
     marinejax bench physics|envs|training [flags]
+
+Every command keeps JAX's persistent compilation cache in the user's cache directory
+(`$XDG_CACHE_HOME/marinejax/jax-compilation-cache`, else `~/.cache/...`), so that a second identical
+run skips most of its compilation; `--no-compile-cache` switches it off for one command.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import argparse
 import ast
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -21,6 +26,23 @@ from typing import Any
 
 class UserError(Exception):
     """A mistake in what the user asked for: reported in one line, exit code 2, no traceback."""
+
+
+def compile_cache_dir() -> Path:
+    """Where the CLI keeps JAX's persistent compilation cache: `$XDG_CACHE_HOME` or `~/.cache`, then
+    `marinejax/jax-compilation-cache`."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "marinejax" / "jax-compilation-cache"
+
+
+def enable_compile_cache(path: Path) -> None:
+    """Turn on JAX's persistent compilation cache in `path` for this process, for every compiled
+    function (JAX's default skips those that compile in under a second, which is most of an env)."""
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def _key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
@@ -58,13 +80,14 @@ def _check_target(value: float | None) -> float | None:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from rich.console import Console
+    import jax
 
+    from marinejax.console import make_console
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.progress import TrainingProgress
-    from marinejax.train.runner import load_train_config, train
+    from marinejax.train.runner import check_devices, load_train_config, train
 
-    console = Console()
+    console = make_console()
     target = _check_target(args.target_error)
     if args.resume:
         if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir:
@@ -88,12 +111,13 @@ def _train(args: argparse.Namespace) -> int:
         run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.env}-{time.strftime('%Y%m%d-%H%M%S')}"
         if (run_dir / "config.json").exists():
             raise UserError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it")
+    devices = check_devices(args.devices, config.ppo)
     console.print(f"[bold]marinejax train[/bold] {config.env} → {run_dir}  ({config.ppo.num_timesteps:,} env steps, "
-                  f"{config.ppo.num_envs} envs; compiling takes about a minute)")
+                  f"{config.ppo.num_envs} envs on {devices} {jax.default_backend()} device(s); compiling takes about a minute)")
     with TrainingProgress(console, config) as progress:
         try:
             summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update, randomize=args.randomize,
-                            target_error=target)
+                            target_error=target, devices=args.devices)
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
@@ -131,8 +155,7 @@ def _print_eval(console, result: dict[str, Any]) -> None:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from rich.console import Console
-
+    from marinejax.console import make_console
     from marinejax.train.evaluate import evaluate_run
 
     overrides = _key_values(args.env, "--env")
@@ -144,7 +167,7 @@ def _eval(args: argparse.Namespace) -> int:
         raise UserError(f"--episodes must be >= 1, got {args.episodes}")
     result = evaluate_run(Path(args.path), out_dir=args.out, episodes=args.episodes, seed=args.seed,
                           env_overrides=overrides, video=not args.no_video, which=args.checkpoint)
-    _print_eval(Console(), result)
+    _print_eval(make_console(), result)
     return 0
 
 
@@ -161,8 +184,11 @@ def _bench(args: argparse.Namespace, rest: list[str]) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="marinejax", description="Underwater vehicles in JAX + MuJoCo MJX.")
     sub = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--no-compile-cache", action="store_true",
+                        help=f"do not use JAX's persistent compilation cache (default: on, in {compile_cache_dir()})")
 
-    tr = sub.add_parser("train", help="train an env with PPO (tuned defaults per task)")
+    tr = sub.add_parser("train", parents=[common], help="train an env with PPO (tuned defaults per task)")
     tr.add_argument("env_name", nargs="?", help="env name, e.g. BlueROV2Heavy-StationKeeping (see marinejax.list_envs())")
     tr.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run from its newest checkpoint")
     tr.add_argument("--run-dir", help="where to write the run (default runs/<ENV>-<time>)")
@@ -172,12 +198,15 @@ def build_parser() -> argparse.ArgumentParser:
                     help="stop once the evaluation error (the task's window, as in `marinejax eval`) is at most this")
     tr.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting, e.g. --ppo learning_rate=1e-3")
     tr.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting, e.g. --env reward.effort=0.1")
+    tr.add_argument("--devices", type=int, metavar="N",
+                    help="train on the first N local devices (default: all of jax.local_devices()); the env batch is "
+                         "split over them")
     tr.add_argument("--randomize", action="store_true", help="Brax per-env-slot domain randomization during training")
     tr.add_argument("--episodes", type=int, default=64, help="episodes of the final evaluation (default 64)")
     tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
     tr.add_argument("--no-video", action="store_true", help="skip the video of the final evaluation")
 
-    ev = sub.add_parser("eval", help="evaluate a run directory or checkpoint: statistics, path plot, video")
+    ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory or checkpoint: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its newest checkpoint) or a checkpoint directory")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
                     help="for a run directory: the checkpoint with the lowest evaluation error during training "
@@ -190,13 +219,13 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=Path, help="output directory (default RUN_DIR/eval)")
     ev.add_argument("--no-video", action="store_true", help="skip the video")
 
-    val = sub.add_parser("validate", help="simulate force steps and a roll swing; print them against closed-form values")
+    val = sub.add_parser("validate", parents=[common], help="simulate force steps and a roll swing; print them against closed-form values")
     val.add_argument("--vehicle", default="bluerov2_heavy", help="vehicle name (see marinejax.list_vehicles())")
     val.add_argument("--param-set", default=None, help="named parameter set of the vehicle (default: the vehicle's default)")
     val.add_argument("--dt", type=float, default=0.05,
                      help="physics step in seconds, midpoint integrator (default 0.05, the env default)")
 
-    bench = sub.add_parser("bench", add_help=False,
+    bench = sub.add_parser("bench", add_help=False, parents=[common],
                            help="benchmarks: `marinejax bench physics|envs|training [flags]` (-h for their flags)")
     bench.add_argument("what", choices=["physics", "envs", "training"])
     return parser
@@ -207,6 +236,8 @@ def main(argv: list[str] | None = None) -> int:
     args, rest = parser.parse_known_args(argv)
     if args.command != "bench" and rest:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
+    if not args.no_compile_cache:
+        enable_compile_cache(compile_cache_dir())
     from marinejax.train.evaluate import CheckpointError
 
     try:

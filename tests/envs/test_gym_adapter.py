@@ -80,7 +80,7 @@ def test_gymnasium_make_by_id_passes_overrides_and_adds_no_time_limit():
     assert env.unwrapped.episode_length == LENGTH and env.unwrapped.marine_env.config.episode_length == LENGTH
     assert env.observation_space == gymnasium.spaces.Box(-np.inf, np.inf, (OBS,), np.float32)
     assert env.action_space == gymnasium.spaces.Box(-1.0, 1.0, (ACT,), np.float32)
-    assert env.metadata == {"render_modes": [], "render_fps": 20}
+    assert env.metadata == {"render_modes": ["rgb_array"], "render_fps": 20}
     obs, info = env.reset(seed=0)
     assert obs.shape == (OBS,) and obs.dtype == np.float32
     assert obs.flags.writeable
@@ -244,10 +244,17 @@ def test_errors_are_clear(single, vec):
         MarineJaxVectorEnv("Submarine-StationKeeping", num_envs=2)
     with pytest.raises(ValueError, match="render_mode"):
         MarineJaxEnv(NAME, render_mode="human", episode_length=LENGTH)
-    with pytest.raises(ValueError, match="render_mode"), pytest.warns(UserWarning, match="render_modes"):
-        gymnasium.make(ID, render_mode="rgb_array", episode_length=LENGTH)
-    with pytest.raises(ValueError, match="episode_lenght"):  # overrides are validated by marinejax.envs.make
+    with pytest.raises(ValueError, match="valid: None, 'rgb_array'"):
+        MarineJaxVectorEnv(NAME, num_envs=2, render_mode="depth_array", episode_length=LENGTH)
+    # overrides are validated by marinejax.envs.make; an unknown keyword is a TypeError, as in Python
+    with pytest.raises(TypeError, match="unknown config key 'episode_lenght'"):
         gymnasium.make(ID, episode_lenght=LENGTH)
+    with pytest.raises(TypeError, match="unknown config key 'frameskip'"):
+        MarineJaxVectorEnv(NAME, num_envs=2, frameskip=4)
+    with pytest.raises(ValueError, match="must be an integer"):
+        gymnasium.make(ID, episode_length=2.5)
+    with pytest.raises(ValueError, match="autoreset_mode='disabled' is not supported"):
+        MarineJaxVectorEnv(NAME, num_envs=2, autoreset_mode="disabled", episode_length=LENGTH)
     with pytest.raises(ValueError, match="num_envs"):
         MarineJaxVectorEnv(NAME, num_envs=0, episode_length=LENGTH)
     with pytest.raises(ValueError, match="seed"):
@@ -266,3 +273,97 @@ def test_registration_covers_every_env_and_is_idempotent():
         spec = gymnasium.spec(env_id)
         assert spec.kwargs == {"env_name": name} and spec.max_episode_steps is None
         assert spec.vector_entry_point == "marinejax.envs.gym_adapter:MarineJaxVectorEnv"
+
+
+def test_same_step_autoreset_returns_the_new_episode_and_the_final_observation(single):
+    """SAME_STEP (TorchRL's mode): the step that ends an episode returns its reward and flags, the next
+    episode's first observation, and the last observation in infos["final_obs"]; the episodes are the
+    same as with NEXT_STEP (same keys)."""
+    same = gymnasium.make_vec(ID, num_envs=N, episode_length=LENGTH, autoreset_mode="same_step")
+    nxt = MarineJaxVectorEnv(NAME, num_envs=N, episode_length=LENGTH)
+    assert same.autoreset_mode == gymnasium.vector.AutoresetMode.SAME_STEP == same.metadata["autoreset_mode"]
+    assert nxt.autoreset_mode == gymnasium.vector.AutoresetMode.NEXT_STEP
+    actions = random_actions(2 * LENGTH + 2, seed=3)
+    obs_s, _ = same.reset(seed=7)
+    obs_n, _ = nxt.reset(seed=7)
+    np.testing.assert_array_equal(obs_s, obs_n)
+    t = 0
+    for step in range(LENGTH):
+        obs_s, rew_s, term_s, trunc_s, info_s = same.step(actions[t])
+        obs_n, rew_n, term_n, trunc_n, info_n = nxt.step(actions[t])
+        t += 1
+        np.testing.assert_array_equal(rew_s, rew_n)
+        np.testing.assert_array_equal(trunc_s, trunc_n)
+        if step < LENGTH - 1:
+            np.testing.assert_array_equal(obs_s, obs_n)
+            assert "final_obs" not in info_s
+    assert trunc_s.all() and not term_s.any()
+    np.testing.assert_array_equal(info_s["final_obs"], obs_n)  # the last observation of the episode
+    assert info_s["_final_obs"].all() and info_s["_final_info"].all()
+    np.testing.assert_array_equal(info_s["final_info"]["position_error"], info_n["position_error"])
+    first_s = obs_s
+    obs_n, rew_n, _, trunc_n, _ = nxt.step(actions[t])  # NEXT_STEP resets one call later
+    np.testing.assert_array_equal(first_s, obs_n)
+    assert (rew_n == 0).all() and same.elapsed_steps.tolist() == [0] * N
+    obs_s, *_ = same.step(actions[t + 1])
+    obs_n, *_ = nxt.step(actions[t + 1])
+    np.testing.assert_array_equal(obs_s, obs_n)
+
+
+def test_rgb_array_rendering_in_a_child_process_with_egl():
+    """render_mode="rgb_array" frames of the documented size; MuJoCo needs MUJOCO_GL=egl headless,
+    which must be set before it is imported: hence a child process."""
+    import os
+    import subprocess
+    import sys
+
+    code = f"""
+import gymnasium, numpy as np
+import marinejax
+env = gymnasium.make("{ID}", render_mode="rgb_array", episode_length={LENGTH})
+env.reset(seed=0)
+a = env.render()
+env.step(np.ones(8, np.float32))
+b = env.render()
+vec = gymnasium.make_vec("{ID}", num_envs=2, render_mode="rgb_array", render_width=64, render_height=48, episode_length={LENGTH})
+vec.reset(seed=0)
+frames = vec.render()
+print(a.shape, a.dtype, int(a.std() > 5), int(np.abs(a.astype(int) - b.astype(int)).sum() > 0), len(frames), frames[0].shape)
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "MUJOCO_GL": "egl"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip().splitlines()[-1] == "(480, 640, 3) uint8 1 1 2 (48, 64, 3)"
+
+
+def test_module_prefixed_id_imports_marinejax_itself():
+    import subprocess
+    import sys
+
+    code = f"import gymnasium; env = gymnasium.make('marinejax:{ID}', episode_length=5); print(env.reset(seed=0)[0].shape)"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"({OBS},)", proc.stderr[-2000:]
+
+
+def test_async_vector_env_fails_clearly_when_forked_and_works_with_spawn():
+    import subprocess
+    import sys
+
+    code = f"""
+import gymnasium, marinejax, numpy as np
+import jax.numpy as jnp
+jnp.zeros(1).block_until_ready()  # JAX has started its threads
+try:
+    gymnasium.make_vec("{ID}", num_envs=2, vectorization_mode="async", vector_kwargs={{"context": "fork"}}, episode_length=5)
+except Exception:  # the child's RuntimeError ends it; the parent sees the broken pipe
+    print("fork: failed")
+envs = gymnasium.make_vec("{ID}", num_envs=2, vectorization_mode="async", vector_kwargs={{"context": "spawn"}}, episode_length=5)
+obs, _ = envs.reset(seed=0)
+obs, *_ = envs.step(np.zeros((2, 8), np.float32))
+print("spawn:", obs.shape)
+envs.close()
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().splitlines()[-2:] == ["fork: failed", f"spawn: (2, {OBS})"], proc.stdout
+    assert "cannot run in a process forked after JAX started" in proc.stderr  # the child says why

@@ -1,10 +1,13 @@
 """End to end through the console script: train → eval → resume, and user mistakes."""
 
 import json
+import math
 import os
+import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -17,8 +20,12 @@ TINY = [
 ]
 
 
-def marinejax(*args, timeout=600, cwd=None):
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+# JAX's persistent compilation cache of these CLI runs (on by default) goes here, not in the user's.
+CACHE_HOME = Path(tempfile.mkdtemp(prefix="marinejax-test-cache-"))
+
+
+def marinejax(*args, timeout=600, cwd=None, extra_env=None):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "XDG_CACHE_HOME": str(CACHE_HOME), **(extra_env or {})}
     return subprocess.run([sys.executable, "-m", "marinejax.cli", *args], capture_output=True, text=True, timeout=timeout,
                           env=env, cwd=cwd)
 
@@ -29,6 +36,7 @@ def run_dir(tmp_path_factory):
     # a relative run directory, as users type it
     proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", "sk", *TINY, cwd=run.parent)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    (run.parent / "train.stdout").write_text(proc.stdout)
     return run
 
 
@@ -50,6 +58,20 @@ def test_train_writes_a_complete_run_directory(run_dir):
     assert summary["status"] == "finished" and summary["evaluation"]["episodes"] == 4
     video = summary["evaluation"].get("video")
     assert video and Path(video).stat().st_size > 10_000, summary["evaluation"].get("video_error")
+
+
+@pytest.mark.slow
+def test_output_to_a_pipe_is_one_plain_line_per_evaluation_and_the_compile_cache_is_written(run_dir):
+    lines = (run_dir.parent / "train.stdout").read_text().splitlines()
+    evals = [line for line in lines if line.startswith("eval ")]
+    assert len(evals) == 3, lines  # num_evals=3
+    for line in evals:
+        assert re.fullmatch(r"eval step=\d+/1600 elapsed_s=\S+ steps_per_s=\S+ return=\S+ error_m=\S+ best_error_m=\S+",
+                            line), line
+    assert any(line.startswith("run directory: ") and str(run_dir.name) in line for line in lines)
+    assert "\x1b" not in "".join(lines)  # no terminal escapes
+    cache = CACHE_HOME / "marinejax" / "jax-compilation-cache"
+    assert cache.is_dir() and sum(1 for _ in cache.iterdir()) >= 5
 
 
 @pytest.mark.slow
@@ -149,3 +171,27 @@ def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_
     assert "median error" in proc.stdout
     again = marinejax(*args)
     assert again.returncode == 0 and again.stdout.count("finished earlier, reusing") == 2
+
+
+@pytest.mark.slow
+def test_training_on_two_virtual_cpu_devices_splits_the_batch_and_learns(tmp_path):
+    run = tmp_path / "two"
+    proc = marinejax("train", "BlueROV2Heavy-CircleTracking", "--run-dir", str(run), "--devices", "2", "--no-video",
+                     "--timesteps", "300000", "--episodes", "8", "--ppo", "num_envs=64", "--ppo", "batch_size=64",
+                     "--ppo", "num_evals=4", "--ppo", "num_eval_envs=8", "--no-compile-cache",
+                     extra_env={"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "64 envs on 2 cpu device(s)" in proc.stdout
+    config = json.loads((run / "config.json").read_text())
+    assert len(config["machine"]["devices"]) == 2
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    rewards = [r["eval/episode_reward"] for r in records]
+    assert all(math.isfinite(v) for r in records for v in r.values())
+    assert rewards[-1] > rewards[0] + 0.2 * abs(rewards[0]), rewards
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["devices"] == 2 and math.isfinite(summary["evaluation"]["position_error_mean_m"])
+
+
+def test_more_devices_than_there_are_is_a_user_error():
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--devices", "3", timeout=120)
+    assert proc.returncode == 2 and "devices must be between 1 and the 1 local device(s)" in proc.stderr

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from marinejax.benchmarks.common import fmt_rate, machine_info, parse_batch_sizes, positive, time_calls
+from marinejax.console import make_console
 
 DEFAULT_ENVS = "BlueROV2Heavy-StationKeeping,BlueROV2Heavy-CircleTracking,BlueROV2Heavy-HelixTracking,BlueROV2Heavy-LemniscateTracking"
 DEFAULT_BATCHES = "1,256,1024,4096,8192"
@@ -78,13 +79,12 @@ def time_env(env, batch: int, steps: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from rich.console import Console
     from rich.table import Table
 
     import marinejax.envs as E
 
     names = [n.strip() for n in args.envs.split(",") if n.strip()]
-    console = Console() if sys.stdout.isatty() else Console(width=140)
+    console = make_console()
     try:
         envs = {(n, integ, sub): E.make(n, integrator=integ, substeps=sub) for n in names for integ, sub in args.physics}
     except ValueError as err:

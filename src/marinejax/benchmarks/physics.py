@@ -40,6 +40,7 @@ from marinejax.benchmarks.common import (
 
 import numpy as np
 
+from marinejax.console import make_console
 from marinejax.physics import DEFAULT_INTEGRATOR, INTEGRATORS, check_integrator
 
 DEFAULT_BATCH_SIZES = "1,16,256,1024,4096,16384"
@@ -361,11 +362,10 @@ def main(argv: list[str] | None = None) -> int:
     total_start = time.perf_counter()
 
     import jax.numpy as jnp
-    from rich.console import Console
 
     import marinejax
 
-    console = Console() if sys.stdout.isatty() else Console(width=160)
+    console = make_console()
     info = machine_info()
     max_batch = MAX_BATCH_GPU if info["backend"] == "gpu" else MAX_BATCH_CPU
     too_big = [b for b in args.batch_sizes if b > max_batch]

@@ -14,6 +14,10 @@ from typing import Any, Mapping, TypeVar
 C = TypeVar("C")
 
 
+class UnknownConfigKey(ValueError):
+    """An override names a config field that does not exist (the message lists the valid ones)."""
+
+
 def _check_value(path: str, old: Any, new: Any, variable_length: bool = False) -> Any:
     if dataclasses.is_dataclass(old):
         if isinstance(new, Mapping):
@@ -65,7 +69,7 @@ def apply_overrides(config: C, overrides: Mapping[str, Any], prefix: str = "") -
     changes = {}
     for key, value in nested.items():
         if key not in valid:
-            raise ValueError(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}")
+            raise UnknownConfigKey(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}")
         variable = bool(fields[key].metadata.get("variable_length"))
         changes[key] = _check_value(prefix + key, getattr(config, key), value, variable)
     return dataclasses.replace(config, **changes)

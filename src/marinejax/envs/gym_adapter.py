@@ -4,9 +4,19 @@
     env = gymnasium.make("marinejax/BlueROV2Heavy-StationKeeping-v0", episode_length=400)
     envs = gymnasium.make_vec("marinejax/BlueROV2Heavy-StationKeeping-v0", num_envs=64)
 
-Keyword arguments other than `render_mode` (and `num_envs` for the vector env) are config overrides
-for `marinejax.envs.make`. Both adapters take and return numpy arrays: observations float32, actions
-float32 in [-1, 1] (the env clips).
+`gymnasium.make("marinejax:marinejax/<env>-v0")` (module prefix) imports marinejax itself, for code
+that cannot import it first (the ids are registered when marinejax is imported).
+
+Keyword arguments other than `render_mode`, `render_width`, `render_height` (and `num_envs`,
+`autoreset_mode` for the vector env) are config overrides for `marinejax.envs.make`; an unknown one
+raises TypeError, as an unexpected keyword argument does (clients such as TorchRL's `GymEnv` and
+SB3's `make_vec_env` try optional keywords and fall back on TypeError). Both adapters take and
+return numpy arrays: observations float32, actions float32 in [-1, 1] (the env clips).
+
+Rendering: `render_mode="rgb_array"` makes `render()` return the 'chase' camera's view, (480, 640, 3)
+uint8 by default (`render_width`, `render_height`), with the target as a red sphere; the vector env
+returns a tuple with one frame per env. MuJoCo renders offscreen; on a machine without a display
+start Python with MUJOCO_GL=egl.
 
 Episodes end as in Gymnasium: `terminated` when the Brax env reports done (the vehicle left the work
 area, or the physics went non-finite), `truncated` after `config.episode_length` steps without
@@ -25,10 +35,20 @@ Randomness. Every episode is drawn from one JAX key:
     A single env has no autoreset, so these episodes have no single-env counterpart with the same
     seed: compare vector and single envs only up to the first autoreset.
 
-The vector env uses Gymnasium's NEXT_STEP autoreset: the step after env i reported terminated or
-truncated resets env i instead of stepping it (its action is ignored) and returns the new episode's
-first observation with reward 0, terminated False and truncated False. All N envs advance in one
-jitted, vmapped call, autoresets included; state stays on the device between calls.
+Autoreset of the vector env (`autoreset_mode`, also in `metadata` and as an attribute):
+  * "next_step" (default, Gymnasium's NEXT_STEP): the step after env i reported terminated or
+    truncated resets env i instead of stepping it (its action is ignored) and returns the new
+    episode's first observation with reward 0, terminated False and truncated False;
+  * "same_step" (SAME_STEP, what TorchRL expects): the step that ends an episode also resets the env
+    and returns the new episode's first observation, with that step's reward, terminated and
+    truncated; the last observation is in infos["final_obs"] and the last metrics in
+    infos["final_info"], each with a boolean mask "_final_obs" / "_final_info".
+All N envs advance in one jitted, vmapped call, autoresets included; state stays on the device.
+
+Processes: JAX cannot run in a process forked after it started its threads. Gymnasium's
+AsyncVectorEnv forks by default on Linux, so use `make_vec(..., vectorization_mode="async",
+vector_kwargs={"context": "spawn"})` (or the default jitted vector env, which is faster); an env
+created in a forked child raises a RuntimeError saying so instead of hanging.
 
 Compiled functions are shared: all adapters built for the same env name and resolved config reuse
 one Brax env and its jitted reset/step (a small LRU cache), so `gymnasium.make` twice,
@@ -38,6 +58,7 @@ one Brax env and its jitted reset/step (a small LRU cache), so `gymnasium.make` 
 from __future__ import annotations
 
 import functools
+import os
 from typing import Any, NamedTuple, Sequence
 
 import gymnasium
@@ -49,6 +70,7 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from marinejax.envs.base import MarineEnv
+from marinejax.envs.config import UnknownConfigKey
 from marinejax.envs.registry import list_envs, make
 
 __all__ = ["MarineJaxEnv", "MarineJaxVectorEnv", "gymnasium_id", "register_gymnasium_envs"]
@@ -56,6 +78,10 @@ __all__ = ["MarineJaxEnv", "MarineJaxVectorEnv", "gymnasium_id", "register_gymna
 NAMESPACE = "marinejax"
 VERSION = 0
 _SEED_BOUND = 2**31  # seeds drawn from np_random lie in [0, 2**31)
+RENDER_MODES = ["rgb_array"]
+AUTORESET_MODES = {"next_step": gymnasium.vector.AutoresetMode.NEXT_STEP,
+                   "same_step": gymnasium.vector.AutoresetMode.SAME_STEP}
+_IMPORT_PID = os.getpid()  # a different pid later means this process was forked after the import
 
 
 def gymnasium_id(env_name: str) -> str:
@@ -127,7 +153,19 @@ class _Kernels:
         self.step = jax.jit(env.step)
         self.vreset = jax.jit(self._vreset)
         self.vstep = jax.jit(self._vstep)
+        self.vstep_same = jax.jit(self._vstep_same)
         self.vmerge = jax.jit(_where)
+        self.target = jax.jit(env.target_position)
+
+    def _reset_where(self, mask: jax.Array, carry: _Carry, episode: jax.Array, state: State) -> State:
+        """`state` with envs where `mask` replaced by fresh episodes (key fold_in(K_i, episode_i))."""
+
+        def with_resets():
+            fresh = jax.vmap(self.env.reset)(jax.vmap(jax.random.fold_in)(carry.key, episode))
+            return _where(mask, fresh, state)
+
+        # Reset only when some env needs it (jnp.any is a scalar: a real branch, not a select).
+        return jax.lax.cond(jnp.any(mask), with_resets, lambda: state)
 
     def _vreset(self, keys: jax.Array) -> _Carry:
         n = keys.shape[0]
@@ -135,23 +173,30 @@ class _Kernels:
         return _Carry(jax.vmap(self.env.reset)(keys), zeros, jnp.zeros(n, bool), zeros, keys)
 
     def _vstep(self, carry: _Carry, action: jax.Array):
-        env = self.env
-        stepped = jax.vmap(env.step)(carry.state, action)
+        """NEXT_STEP: envs that ended on the previous call reset now instead of stepping."""
+        stepped = jax.vmap(self.env.step)(carry.state, action)
         resetting = carry.needs_reset
         episode = carry.episode + resetting.astype(jnp.int32)
-
-        def with_resets():
-            fresh = jax.vmap(env.reset)(jax.vmap(jax.random.fold_in)(carry.key, episode))
-            return _where(resetting, fresh, stepped)
-
-        # Reset only when some env needs it (jnp.any is a scalar: a real branch, not a select).
-        state = jax.lax.cond(jnp.any(resetting), with_resets, lambda: stepped)
+        state = self._reset_where(resetting, carry, episode, stepped)
         reward = jnp.where(resetting, 0.0, state.reward)
         terminated = (state.done > 0) & ~resetting
         steps = jnp.where(resetting, 0, carry.steps + 1)
         truncated = (steps >= self.episode_length) & ~terminated
         carry = _Carry(state, steps, terminated | truncated, episode, carry.key)
         return carry, (state.obs, reward, terminated, truncated, state.metrics)
+
+    def _vstep_same(self, carry: _Carry, action: jax.Array):
+        """SAME_STEP: envs whose episode ends in this step reset in it; returns also the final
+        observations and metrics and the mask of the envs that ended."""
+        stepped = jax.vmap(self.env.step)(carry.state, action)
+        terminated = stepped.done > 0
+        truncated = (carry.steps + 1 >= self.episode_length) & ~terminated
+        ended = terminated | truncated
+        episode = carry.episode + ended.astype(jnp.int32)
+        state = self._reset_where(ended, carry, episode, stepped)
+        steps = jnp.where(ended, 0, carry.steps + 1)
+        carry = _Carry(state, steps, jnp.zeros_like(ended), episode, carry.key)
+        return carry, (state.obs, stepped.reward, terminated, truncated, state.metrics, stepped.obs, stepped.metrics, ended)
 
 
 @functools.lru_cache(maxsize=16)
@@ -160,7 +205,16 @@ def _cached_kernels(env_name: str, config) -> _Kernels:
 
 
 def _kernels(env_name: str, overrides: dict[str, Any]) -> _Kernels:
-    env = make(env_name, **overrides)  # validates the name and the overrides
+    if os.getpid() != _IMPORT_PID:
+        raise RuntimeError(
+            "marinejax envs cannot run in a process forked after JAX started (it would hang): for Gymnasium's "
+            "AsyncVectorEnv pass vector_kwargs={'context': 'spawn'}, or use the jitted vector env "
+            "(gymnasium.make_vec(id, num_envs=N), the default vectorization mode)"
+        )
+    try:
+        env = make(env_name, **overrides)  # validates the name and the overrides
+    except UnknownConfigKey as err:
+        raise TypeError(f"unexpected keyword argument for {env_name}: {err}") from err
     try:
         hash(env.config)
     except TypeError:  # an unhashable config field: no sharing
@@ -169,8 +223,32 @@ def _kernels(env_name: str, overrides: dict[str, Any]) -> _Kernels:
 
 
 def _check_render_mode(render_mode: str | None) -> None:
-    if render_mode is not None:
-        raise ValueError(f"render_mode={render_mode!r} is not supported: marinejax envs have no render modes yet (valid: None)")
+    if render_mode is not None and render_mode not in RENDER_MODES:
+        raise ValueError(f"render_mode={render_mode!r} is not supported; valid: None, {', '.join(map(repr, RENDER_MODES))}")
+
+
+class _Frames:
+    """Lazily created offscreen renderer of one env's vehicle (no OpenGL until the first frame)."""
+
+    def __init__(self, kernels: _Kernels, width: int, height: int):
+        if int(width) < 1 or int(height) < 1:
+            raise ValueError(f"render_width and render_height must be >= 1, got {width} x {height}")
+        self.kernels, self.width, self.height = kernels, int(width), int(height)
+        self.renderer = None
+
+    def __call__(self, qpos: np.ndarray, info: dict) -> np.ndarray:
+        if self.renderer is None:
+            from marinejax.render import FrameRenderer
+            from marinejax.vehicle import model_dir
+
+            self.renderer = FrameRenderer(model_dir() / f"{self.kernels.env.vehicle.name}.xml", self.width, self.height)
+        target = np.asarray(self.kernels.target(info))
+        return self.renderer.frame(np.asarray(qpos)[:7], target)
+
+    def close(self) -> None:
+        if self.renderer is not None:
+            self.renderer.close()
+            self.renderer = None
 
 
 def _float32_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -190,9 +268,10 @@ class MarineJaxEnv(gymnasium.Env):
     heading_error_deg, reward/<term> (weighted), nonfinite, out_of_bounds, and task-specific ones.
     """
 
-    metadata = {"render_modes": [], "render_fps": 20}  # per instance: render_fps = 1 / control_dt
+    metadata = {"render_modes": RENDER_MODES, "render_fps": 20}  # per instance: render_fps = 1 / control_dt
 
-    def __init__(self, env_name: str, render_mode: str | None = None, **overrides: Any):
+    def __init__(self, env_name: str, render_mode: str | None = None, render_width: int = 640, render_height: int = 480,
+                 **overrides: Any):
         _check_render_mode(render_mode)
         self.env_name = env_name
         self._kernels = _kernels(env_name, overrides)
@@ -200,7 +279,8 @@ class MarineJaxEnv(gymnasium.Env):
         cfg = self.marine_env.config
         self.episode_length = int(cfg.episode_length)
         self.render_mode = render_mode
-        self.metadata = {"render_modes": [], "render_fps": int(round(1.0 / cfg.control_dt))}
+        self._frames = _Frames(self._kernels, render_width, render_height)
+        self.metadata = {"render_modes": RENDER_MODES, "render_fps": int(round(1.0 / cfg.control_dt))}
         self.observation_space = spaces.Box(-np.inf, np.inf, (self.marine_env.observation_size,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.marine_env.action_size,), np.float32)
         self._state: State | None = None
@@ -234,8 +314,16 @@ class MarineJaxEnv(gymnasium.Env):
         info = {k: float(v) for k, v in metrics.items()}
         return np.array(obs, dtype=np.float32), float(reward), terminated, truncated, info
 
-    def render(self) -> None:
-        return None
+    def render(self) -> np.ndarray | None:
+        """With render_mode="rgb_array": the current frame, (render_height, render_width, 3) uint8."""
+        if self.render_mode is None:
+            return None
+        if self._state is None:
+            raise gymnasium.error.ResetNeeded("call reset() before render()")
+        return self._frames(self._state.pipeline_state.data.qpos, self._state.info)
+
+    def close(self) -> None:
+        self._frames.close()
 
 
 # --- vector env ---------------------------------------------------------------------------
@@ -251,12 +339,18 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
     `reset(options={"reset_mask": mask})` resets only the envs where `mask` (N,) bool is True.
     """
 
-    metadata = {"render_modes": [], "render_fps": 20, "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": RENDER_MODES, "render_fps": 20, "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
 
-    def __init__(self, env_name: str, num_envs: int, render_mode: str | None = None, **overrides: Any):
+    def __init__(self, env_name: str, num_envs: int, render_mode: str | None = None, autoreset_mode: Any = "next_step",
+                 render_width: int = 640, render_height: int = 480, **overrides: Any):
         _check_render_mode(render_mode)
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        mode = getattr(autoreset_mode, "value", autoreset_mode)
+        if mode not in AUTORESET_MODES:
+            raise ValueError(f"autoreset_mode={autoreset_mode!r} is not supported; valid: {list(AUTORESET_MODES)} "
+                             "(or the gymnasium.vector.AutoresetMode members NEXT_STEP, SAME_STEP)")
+        self.autoreset_mode = AUTORESET_MODES[mode]
         self.env_name = env_name
         self.num_envs = int(num_envs)
         self._kernels = _kernels(env_name, overrides)
@@ -264,10 +358,11 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         cfg = self.marine_env.config
         self.episode_length = int(cfg.episode_length)
         self.render_mode = render_mode
+        self._frames = _Frames(self._kernels, render_width, render_height)
         self.metadata = {
-            "render_modes": [],
+            "render_modes": RENDER_MODES,
             "render_fps": int(round(1.0 / cfg.control_dt)),
-            "autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
+            "autoreset_mode": self.autoreset_mode,
         }
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (self.marine_env.observation_size,), np.float32)
         self.single_action_space = spaces.Box(-1.0, 1.0, (self.marine_env.action_size,), np.float32)
@@ -318,14 +413,26 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         actions = _float32_action(actions, self.action_space.shape)
-        self._carry, out = self._kernels.vstep(self._carry, actions)
-        obs, reward, terminated, truncated, metrics = jax.device_get(out)
+        if self.autoreset_mode == gymnasium.vector.AutoresetMode.NEXT_STEP:
+            self._carry, out = self._kernels.vstep(self._carry, actions)
+            obs, reward, terminated, truncated, metrics = jax.device_get(out)
+            infos = self._infos(metrics, None)
+        else:
+            self._carry, out = self._kernels.vstep_same(self._carry, actions)
+            obs, reward, terminated, truncated, metrics, final_obs, final_metrics, ended = jax.device_get(out)
+            infos = self._infos(metrics, None)
+            if ended.any():
+                ended = np.array(ended, dtype=np.bool_)
+                infos["final_obs"] = np.array(final_obs, dtype=np.float32)
+                infos["_final_obs"] = ended
+                infos["final_info"] = self._infos(final_metrics, ended)
+                infos["_final_info"] = ended.copy()
         return (
             np.array(obs, dtype=np.float32),
             np.array(reward, dtype=np.float64),
             np.array(terminated, dtype=np.bool_),
             np.array(truncated, dtype=np.bool_),
-            self._infos(metrics, None),
+            infos,
         )
 
     def _infos(self, metrics: dict[str, np.ndarray], mask: np.ndarray | None) -> dict[str, np.ndarray]:
@@ -335,5 +442,14 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             infos[f"_{k}"] = np.ones(self.num_envs, np.bool_) if mask is None else mask.copy()
         return infos
 
-    def render(self) -> None:
-        return None
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """With render_mode="rgb_array": one frame per env, each (render_height, render_width, 3) uint8."""
+        if self.render_mode is None:
+            return None
+        if self._carry is None:
+            raise gymnasium.error.ResetNeeded("call reset() before render()")
+        qpos, info = jax.device_get((self._carry.state.pipeline_state.data.qpos, self._carry.state.info))
+        return tuple(self._frames(qpos[i], jax.tree.map(lambda x, i=i: x[i], info)) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self._frames.close()

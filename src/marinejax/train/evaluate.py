@@ -9,9 +9,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import subprocess
-import sys
 import warnings
 from importlib import resources
 from pathlib import Path
@@ -187,23 +184,6 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
     return out
 
 
-def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: float, out_stem: Path) -> Path:
-    """Render one episode offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
-
-    MuJoCo picks its OpenGL backend when it is first imported, so rendering runs in a child
-    process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
-    """
-    data = out_stem.with_suffix(".npz")
-    np.savez(data, qpos=qpos, targets=targets, fps=fps, model=str(model_path))
-    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
-    proc = subprocess.run([sys.executable, "-m", "marinejax.train.render", str(data), str(out_stem)],
-                          env=env, capture_output=True, text=True)
-    data.unlink(missing_ok=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"video rendering failed: {proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}")
-    return Path(proc.stdout.strip().splitlines()[-1])
-
-
 def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
                  env_overrides: dict[str, Any] | None = None, video: bool = True, which: str = "best") -> dict[str, Any]:
     """Evaluate a run directory or checkpoint (`which`: "best" or "latest" of a run directory);
@@ -227,6 +207,7 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
                **summarize(env, result)}
     summary["plot"] = str(plot_paths(result, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir / "paths.png"))
     if video:
+        from marinejax.render import render_video
         from marinejax.vehicle import model_dir
 
         model = model_dir() / f"{env.vehicle.name}.xml"

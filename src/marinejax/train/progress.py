@@ -1,4 +1,8 @@
-"""Live training display: env steps, steps/s, evaluation return, position error, elapsed, time left."""
+"""Training display: env steps, steps/s, evaluation return, position error, elapsed, time left.
+
+On a terminal a live bar; in a file or pipe one plain line per evaluation, for example
+`eval step=634880/12000000 elapsed_s=44.1 steps_per_s=21456 return=-12.30 error_m=0.0123 best_error_m=0.0101`
+(fields `key=value`, `-` where not known yet)."""
 
 from __future__ import annotations
 
@@ -15,7 +19,8 @@ class TrainingProgress:
     """Context manager; `update(record)` takes the records `runner.train` passes after each evaluation.
 
     Position error is the statistic of `marinejax eval` (the task's window: last 1 s of station
-    keeping, after 2 s of tracking), averaged over the evaluation episodes; "best" is the lowest so far."""
+    keeping, after 2 s of tracking), averaged over the evaluation episodes; "best" is the lowest so far.
+    The live bar is used only when `console` is a terminal."""
 
     def __init__(self, console: Console, config: TrainConfig):
         self.total = config.ppo.num_timesteps
@@ -35,14 +40,17 @@ class TrainingProgress:
         self.console = console
         self.last_step, self.last_time = 0, 0.0
         self.best = None
+        self.live = console.is_terminal
 
     def __enter__(self) -> "TrainingProgress":
-        self.progress.__enter__()
-        self.task = self.progress.add_task("training", total=self.total, sps="-", ret="-", err="-")
+        if self.live:
+            self.progress.__enter__()
+            self.task = self.progress.add_task("training", total=self.total, sps="-", ret="-", err="-")
         return self
 
     def __exit__(self, *exc) -> None:
-        self.progress.__exit__(*exc)
+        if self.live:
+            self.progress.__exit__(*exc)
 
     def update(self, record: dict[str, Any]) -> None:
         step, elapsed = record["step"], record["elapsed"]
@@ -53,11 +61,20 @@ class TrainingProgress:
         err = evaluation_error(record)
         if err is not None and record["step"] > 0:
             self.best = err if self.best is None else min(self.best, err)
+        ret = record.get("eval/episode_reward")
+        if not self.live:
+            self.console.print(
+                f"eval step={step}/{self.total} elapsed_s={elapsed:.1f} steps_per_s={f'{sps:.0f}' if sps else '-'} "
+                f"return={f'{ret:.2f}' if ret is not None else '-'} error_m={f'{err:.4f}' if err is not None else '-'} "
+                f"best_error_m={f'{self.best:.4f}' if self.best is not None else '-'}",
+                markup=False,
+            )
+            return
         self.progress.update(
             self.task,
             completed=min(step, self.total),
             sps=f"{sps:,.0f}" if sps else "-",
-            ret=f"{record['eval/episode_reward']:.1f}" if "eval/episode_reward" in record else "-",
+            ret=f"{ret:.1f}" if ret is not None else "-",
             err=f"{err:.4f} m (best {self.best:.4f})" if err is not None and self.best is not None
             else (f"{err:.4f} m" if err is not None else "-"),
         )

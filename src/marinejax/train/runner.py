@@ -66,6 +66,18 @@ def machine() -> dict[str, Any]:
             "devices": [str(d) for d in jax.devices()], "jax": jax.__version__, "python": platform.python_version()}
 
 
+def check_devices(devices: int | None, ppo: PPOConfig) -> int:
+    """The number of local devices to train on (None: all); raises ValueError naming the valid range."""
+    available = jax.local_device_count()
+    n = available if devices is None else devices
+    if not 1 <= n <= available:
+        raise ValueError(f"devices must be between 1 and the {available} local device(s) "
+                         f"({', '.join(str(d) for d in jax.local_devices())}), got {devices}")
+    if ppo.num_envs % n:
+        raise ValueError(f"ppo num_envs ({ppo.num_envs}) must be a multiple of the number of devices ({n})")
+    return n
+
+
 def latest_checkpoint(run_dir: Path) -> Path | None:
     """Newest complete checkpoint directory of a run, or None."""
     root = Path(run_dir) / CHECKPOINTS
@@ -121,6 +133,7 @@ def train(
     randomize: bool = False,
     target_error: float | None = None,
     stop_at_target: bool = True,
+    devices: int | None = None,
 ) -> dict[str, Any]:
     """Train `config` into `run_dir`; resume from its newest checkpoint when `resume`.
 
@@ -132,12 +145,16 @@ def train(
     After every evaluation the checkpoint with the lowest `eval/episode_window_error` (m) is named in
     best.json. With `target_error` (m), the summary records when that error first met the target
     (env steps and wall seconds), and training stops there if `stop_at_target`.
+
+    `devices` local devices share the env batch (Brax PPO's pmap; gradients are averaged over them);
+    None uses all of `jax.local_devices()`. `num_envs` must be a multiple of it.
     """
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
     from brax.training.agents.ppo import train as ppo_train
 
     run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
     ppo = config.ppo
+    devices = check_devices(devices, ppo)
     env = build_env(config)
     steps_done, elapsed_before, restore = 0, 0.0, None
     if resume:
@@ -223,6 +240,7 @@ def train(
             restore_checkpoint_path=str(restore) if restore else None,
             progress_fn=progress,
             policy_params_fn=save_params,
+            max_devices_per_host=devices,
         )
     except KeyboardInterrupt:
         status = "interrupted"
@@ -231,6 +249,7 @@ def train(
     summary = {
         "status": status,
         "env": config.env,
+        "devices": devices,
         "env_steps": records[-1]["step"] if records else steps_done,
         "wall_time_s": records[-1]["elapsed"] if records else elapsed_before,
         "last_eval": records[-1] if records else None,

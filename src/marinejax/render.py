@@ -1,0 +1,109 @@
+"""Offscreen rendering with MuJoCo: frames of a vehicle pose (Gymnasium's rgb_array) and videos of
+recorded episodes (rendered in a child process with MUJOCO_GL set).
+
+    python -m marinejax.render EPISODE.npz OUT_STEM   → prints the written MP4 or GIF path
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+
+class FrameRenderer:
+    """Offscreen RGB frames (height, width, 3) uint8 of a vehicle from its 'chase' camera, with the
+    target drawn as a red sphere and an optional reference path as small grey dots.
+
+    MuJoCo chooses its OpenGL backend when it is first imported: on a machine without a display,
+    start Python with MUJOCO_GL=egl."""
+
+    def __init__(self, model_path: str, width: int = 640, height: int = 480):
+        self.model = mujoco.MjModel.from_xml_path(str(model_path))
+        self.data = mujoco.MjData(self.model)
+        try:
+            self.renderer = mujoco.Renderer(self.model, height=height, width=width)
+        except Exception as err:  # no OpenGL context (GLFW without a display, missing EGL, ...)
+            raise RuntimeError(
+                f"MuJoCo could not create an OpenGL context for rendering ({type(err).__name__}: {err}); on a machine "
+                "without a display set MUJOCO_GL=egl (or osmesa) before Python starts"
+            ) from err
+
+    def frame(self, qpos: np.ndarray, target: np.ndarray, path: np.ndarray | None = None) -> np.ndarray:
+        """The frame of free-joint pose `qpos` (7: world position m, quaternion w, x, y, z) with the
+        target at world position `target` (m) and the reference `path` (K, 3) if given."""
+        self.data.qpos[:7] = qpos
+        mujoco.mj_forward(self.model, self.data)
+        self.renderer.update_scene(self.data, camera="chase")
+        scene = self.renderer.scene
+        markers = [(target, 0.04, (0.9, 0.1, 0.1, 0.9))] + [(p, 0.012, (0.8, 0.8, 0.8, 0.6)) for p in (path if path is not None else [])]
+        for point, size, rgba in markers:
+            if scene.ngeom >= scene.maxgeom:
+                break
+            mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE, np.array([size, 0, 0]),
+                                np.asarray(point, dtype=np.float64), np.eye(3).flatten(), np.asarray(rgba, dtype=np.float32))
+            scene.ngeom += 1
+        return self.renderer.render().copy()
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+def render_frames(model_path: str, qpos: np.ndarray, targets: np.ndarray, width: int = 640, height: int = 480) -> list[np.ndarray]:
+    """Frames of a recorded episode: poses `qpos` (T, 7), targets (T, 3); the targets, thinned to
+    about 60 points, are drawn as the reference path."""
+    renderer = FrameRenderer(model_path, width, height)
+    try:
+        path = targets[:: max(1, len(targets) // 60)]
+        return [renderer.frame(q, target, path) for q, target in zip(qpos, targets)]
+    finally:
+        renderer.close()
+
+
+def write_video(frames: list[np.ndarray], fps: float, out_stem: Path) -> Path:
+    """MP4 through imageio's ffmpeg when available, else an animated GIF with Pillow."""
+    try:
+        import imageio.v2 as imageio
+
+        path = out_stem.with_suffix(".mp4")
+        imageio.mimwrite(path, frames, fps=fps, codec="libx264", quality=7, macro_block_size=8)
+        return path
+    except Exception:  # no imageio or no ffmpeg encoder: fall back to GIF
+        from PIL import Image
+
+        path = out_stem.with_suffix(".gif")
+        images = [Image.fromarray(f) for f in frames[::2]]
+        images[0].save(path, save_all=True, append_images=images[1:], duration=int(2000 / fps), loop=0)
+        return path
+
+
+def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: float, out_stem: Path) -> Path:
+    """Render one episode offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
+
+    MuJoCo picks its OpenGL backend when it is first imported, so rendering runs in a child
+    process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
+    """
+    data = out_stem.with_suffix(".npz")
+    np.savez(data, qpos=qpos, targets=targets, fps=fps, model=str(model_path))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.run([sys.executable, "-m", "marinejax.render", str(data), str(out_stem)],
+                          env=env, capture_output=True, text=True)
+    data.unlink(missing_ok=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"video rendering failed: {proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}")
+    return Path(proc.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str]) -> int:
+    data = np.load(argv[0])
+    frames = render_frames(str(data["model"]), data["qpos"], data["targets"])
+    print(write_video(frames, float(data["fps"]), Path(argv[1])))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
