@@ -4,7 +4,7 @@
     marinejax train --resume RUN_DIR
     marinejax eval RUN_DIR_OR_CHECKPOINT [--checkpoint best|latest] [--episodes N] [--env KEY=VALUE ...]
     marinejax validate [--vehicle NAME] [--param-set SET] [--dt S]
-    marinejax bench physics|envs|training [flags]
+    marinejax bench physics|envs|training|clients [flags]
 
 Every command keeps JAX's persistent compilation cache in the user's cache directory
 (`$XDG_CACHE_HOME/marinejax/jax-compilation-cache`, else `~/.cache/...`), so that a second identical
@@ -20,6 +20,7 @@ import math
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +44,18 @@ def enable_compile_cache(path: Path) -> None:
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+
+# Packages whose deprecation notices are about their own internals: a CLI user cannot act on them.
+_DEPENDENCIES = ("brax", "flax", "orbax", "jaxopt", "jax", "jaxlib", "mujoco", "optax", "chex", "etils")
+
+
+def quiet_dependency_warnings() -> None:
+    """Hide DeprecationWarning and FutureWarning raised from inside dependencies (CLI only; the
+    library itself changes no warning filters)."""
+    for package in _DEPENDENCIES:
+        for category in (DeprecationWarning, FutureWarning):
+            warnings.filterwarnings("ignore", category=category, module=rf"{package}(\.|$)")
 
 
 def _key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
@@ -176,6 +189,8 @@ def _bench(args: argparse.Namespace, rest: list[str]) -> int:
         from marinejax.benchmarks.physics import main as bench_main
     elif args.what == "envs":
         from marinejax.benchmarks.envs import main as bench_main
+    elif args.what == "clients":
+        from marinejax.benchmarks.clients import main as bench_main
     else:
         from marinejax.benchmarks.training import main as bench_main
     return bench_main(rest)
@@ -226,8 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="physics step in seconds, midpoint integrator (default 0.05, the env default)")
 
     bench = sub.add_parser("bench", add_help=False, parents=[common],
-                           help="benchmarks: `marinejax bench physics|envs|training [flags]` (-h for their flags)")
-    bench.add_argument("what", choices=["physics", "envs", "training"])
+                           help="benchmarks: `marinejax bench physics|envs|training|clients [flags]` (-h for their flags)")
+    bench.add_argument("what", choices=["physics", "envs", "training", "clients"])
     return parser
 
 
@@ -236,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     args, rest = parser.parse_known_args(argv)
     if args.command != "bench" and rest:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
+    quiet_dependency_warnings()
     if not args.no_compile_cache:
         enable_compile_cache(compile_cache_dir())
     from marinejax.train.evaluate import CheckpointError

@@ -15,7 +15,12 @@ C = TypeVar("C")
 
 
 class UnknownConfigKey(ValueError):
-    """An override names a config field that does not exist (the message lists the valid ones)."""
+    """An override names a config field that does not exist (the message lists the valid ones);
+    `key` is the unknown key, dotted from the top of the config."""
+
+    def __init__(self, message: str, key: str):
+        super().__init__(message)
+        self.key = key
 
 
 def _check_value(path: str, old: Any, new: Any, variable_length: bool = False) -> Any:
@@ -69,7 +74,8 @@ def apply_overrides(config: C, overrides: Mapping[str, Any], prefix: str = "") -
     changes = {}
     for key, value in nested.items():
         if key not in valid:
-            raise UnknownConfigKey(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}")
+            raise UnknownConfigKey(f"unknown config key '{prefix}{key}'; valid keys{' of ' + prefix[:-1] if prefix else ''}: {valid}",
+                                   key=prefix + key)
         variable = bool(fields[key].metadata.get("variable_length"))
         changes[key] = _check_value(prefix + key, getattr(config, key), value, variable)
     return dataclasses.replace(config, **changes)

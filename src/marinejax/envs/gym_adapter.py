@@ -214,7 +214,8 @@ def _kernels(env_name: str, overrides: dict[str, Any]) -> _Kernels:
     try:
         env = make(env_name, **overrides)  # validates the name and the overrides
     except UnknownConfigKey as err:
-        raise TypeError(f"unexpected keyword argument for {env_name}: {err}") from err
+        # Python's own wording: clients such as TorchRL match "unexpected keyword argument '<name>'"
+        raise TypeError(f"{env_name} got an unexpected keyword argument '{err.key}' ({err})") from err
     try:
         hash(env.config)
     except TypeError:  # an unhashable config field: no sharing
