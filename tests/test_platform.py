@@ -70,3 +70,20 @@ def test_training_progress_prints_one_plain_line_per_evaluation_off_a_terminal()
                         "best_error_m=0.0123")
     assert lines[2].endswith("error_m=0.0500 best_error_m=0.0123")
     assert lines[3].endswith("very-long-directory-name/run") and "\x1b" not in out.getvalue()
+
+
+def test_cli_reports_user_errors_in_one_line_and_lets_bugs_raise(monkeypatch, capsys):
+    from marinejax import cli, validation
+    from marinejax.errors import MissingFileError, UserError
+
+    assert cli.main(["validate", "--vehicle", "submarine", "--no-compile-cache"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown vehicle 'submarine'" in err[0] and "bluerov2_heavy" in err[0]
+
+    def bug(*args, **kwargs):
+        raise ValueError("an internal bug")
+
+    monkeypatch.setattr(validation, "print_validation", bug)
+    with pytest.raises(ValueError, match="an internal bug"):  # not turned into a one-line user error
+        cli.main(["validate", "--no-compile-cache"])
+    assert issubclass(UserError, ValueError) and issubclass(MissingFileError, FileNotFoundError)

@@ -24,9 +24,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-
-class UserError(Exception):
-    """A mistake in what the user asked for: reported in one line, exit code 2, no traceback."""
+from marinejax.errors import UserError
 
 
 def compile_cache_dir() -> Path:
@@ -58,7 +56,7 @@ def quiet_dependency_warnings() -> None:
             warnings.filterwarnings("ignore", category=category, module=rf"{package}(\.|$)")
 
 
-def _key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
+def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
     """Parse KEY=VALUE strings; VALUE is a Python literal (number, bool, tuple, string) or a bare string."""
     out = {}
     for item in items or []:
@@ -112,12 +110,12 @@ def _train(args: argparse.Namespace) -> int:
     else:
         if not args.env_name:
             raise UserError("name the env to train, e.g. `marinejax train BlueROV2Heavy-StationKeeping` (or --resume RUN_DIR)")
-        ppo = _key_values(args.ppo, "--ppo")
+        ppo = parse_key_values(args.ppo, "--ppo")
         if args.timesteps is not None:
             ppo["num_timesteps"] = args.timesteps
         if args.seed is not None:
             ppo["seed"] = args.seed
-        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=_key_values(args.env, "--env"))
+        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=parse_key_values(args.env, "--env"))
         from marinejax.train.runner import build_env
 
         build_env(config)  # validate the env overrides before creating a run directory
@@ -171,7 +169,7 @@ def _eval(args: argparse.Namespace) -> int:
     from marinejax.console import make_console
     from marinejax.train.evaluate import evaluate_run
 
-    overrides = _key_values(args.env, "--env")
+    overrides = parse_key_values(args.env, "--env")
     if args.randomize:
         overrides["randomization.enabled"] = True
     if args.current:
@@ -254,8 +252,6 @@ def main(argv: list[str] | None = None) -> int:
     quiet_dependency_warnings()
     if not args.no_compile_cache:
         enable_compile_cache(compile_cache_dir())
-    from marinejax.train.evaluate import CheckpointError
-
     try:
         if args.command == "train":
             return _train(args)
@@ -264,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "validate":
             return _validate(args)
         return _bench(args, rest)
-    except (UserError, ValueError, FileNotFoundError, CheckpointError) as err:
+    except UserError as err:  # anything else is a bug: let its traceback show
         print(f"marinejax {args.command}: error: {err}", file=sys.stderr)
         return 2
 

@@ -27,6 +27,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from marinejax.errors import UserError
 from marinejax.frames import quat_integrate, quat_to_mat
 from marinejax.hydro.forces import hydro_terms
 from marinejax.thrusters import lag_step, t200_thrust
@@ -45,9 +46,9 @@ DEFAULT_INTEGRATOR: Integrator = "midpoint"
 def check_integrator(integrator: str, timestep: float) -> None:
     """Raise ValueError for an unknown integrator or a physics step (s) beyond its stable limit."""
     if integrator not in INTEGRATORS:
-        raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
+        raise UserError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
     if not timestep <= MAX_TIMESTEP[integrator] + 1e-12:
-        raise ValueError(
+        raise UserError(
             f"physics step {timestep:.4f} s exceeds {MAX_TIMESTEP[integrator]} s, the stable limit of the "
             f"{integrator!r} integrator; use more substeps"
         )
@@ -188,7 +189,7 @@ def substep(
         data = data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc))
         return PhysicsState(data=mjx.step(model, data), thrust=thrust)
     if integrator != "midpoint":
-        raise ValueError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
+        raise UserError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
     # Predictor: the state at t + h/2 from the acceleration at t (hydro_terms holds the whole model).
     _, qacc0 = model_acceleration(sys, data.qpos, data.qvel, ps.thrust, wrench, current_world)
     qpos_mid = _advance_free_joint(sys, data.qpos, data.qvel, h / 2)
@@ -235,7 +236,7 @@ def control_step(
     elif mode == "wrench":
         target, wrench = jnp.zeros_like(ps.thrust), command
     else:
-        raise ValueError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
+        raise UserError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
     if external is not None:
         wrench = wrench + external
 
@@ -247,7 +248,10 @@ def control_step(
 
 
 @functools.partial(jax.jit, static_argnames=("substeps", "mode", "batched", "integrator"))
-def _rollout(sys, state, commands, currents, control_dt, substeps, mode, batched, integrator=DEFAULT_INTEGRATOR):
+def rollout_batch(sys, state, commands, currents, control_dt, substeps, mode, batched, integrator=DEFAULT_INTEGRATOR):
+    """The jitted core of `rollout` on validated arrays: `state` a VehicleState (batched if `batched`),
+    commands (T, n) or (B, T, n), currents (T, 3) or (B, T, 3) in m/s, world. Returns the
+    VehicleState after every control step, time (and batch) leading."""
     sys = with_timestep(sys, control_dt / substeps)
 
     def single(state, commands, currents):
@@ -290,35 +294,35 @@ def rollout(
     Returns the state after each control step. Raises SimulationDiverged on a non-finite state.
     """
     if mode not in COMMAND_MODES:
-        raise ValueError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
+        raise UserError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
     if not (isinstance(substeps, int) and substeps >= 1):
-        raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
+        raise UserError(f"substeps must be a positive integer, got {substeps!r}")
     if not (np.isfinite(control_dt) and control_dt > 0):
-        raise ValueError(f"control_dt must be a positive number of seconds, got {control_dt!r}")
+        raise UserError(f"control_dt must be a positive number of seconds, got {control_dt!r}")
     check_integrator(integrator, control_dt / substeps)
     commands = jnp.asarray(commands, dtype=jnp.float32)
     n = vehicle.num_thrusters if mode == "thrusters" else 6
     what = f"{n} thruster throttles for {vehicle.name}" if mode == "thrusters" else "a 6-component body wrench"
     if commands.ndim not in (2, 3) or commands.shape[-1] != n:
-        raise ValueError(f"commands must have shape (T, {n}) or (B, T, {n}) ({what}, mode {mode!r}); got {commands.shape}")
+        raise UserError(f"commands must have shape (T, {n}) or (B, T, {n}) ({what}, mode {mode!r}); got {commands.shape}")
     if not bool(jnp.all(jnp.isfinite(commands))):
-        raise ValueError("commands contain non-finite values")
+        raise UserError("commands contain non-finite values")
     batched = commands.ndim == 3
     lead = commands.shape[:-1]
     current = jnp.zeros(3) if current is None else jnp.asarray(current, dtype=jnp.float32)
     if current.shape == (3,):
         current = jnp.broadcast_to(current, lead + (3,))
     if current.shape != lead + (3,):
-        raise ValueError(f"current must have shape (3,) or {lead + (3,)}; got {current.shape}")
+        raise UserError(f"current must have shape (3,) or {lead + (3,)}; got {current.shape}")
     state = initial_state(vehicle) if initial is None else initial
     if state.thrust.shape[-1] != vehicle.num_thrusters:
-        raise ValueError(f"initial.thrust must have {vehicle.num_thrusters} entries for {vehicle.name}; got {state.thrust.shape}")
+        raise UserError(f"initial.thrust must have {vehicle.num_thrusters} entries for {vehicle.name}; got {state.thrust.shape}")
     if batched and state.position.ndim == 1:
         state = jax.tree.map(lambda x: jnp.broadcast_to(x, (lead[0],) + x.shape), state)
     if state.position.shape[:-1] != lead[:-1]:
-        raise ValueError(f"initial state batch shape {state.position.shape[:-1]} does not match commands {lead[:-1]}")
+        raise UserError(f"initial state batch shape {state.position.shape[:-1]} does not match commands {lead[:-1]}")
 
-    states = _rollout(sys or vehicle.sys, state, commands, current, jnp.float32(control_dt), substeps, mode, batched, integrator)
+    states = rollout_batch(sys or vehicle.sys, state, commands, current, jnp.float32(control_dt), substeps, mode, batched, integrator)
     traj = Trajectory(
         time=control_dt * jnp.arange(1, lead[-1] + 1),
         position=states.position,

@@ -14,6 +14,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from marinejax.errors import UserError
+
 KGF = 9.80665  # N per kgf
 SUPPLY_VOLTAGE_RANGE = (10.0, 20.0)  # V, range covered by the bollard data
 
@@ -50,10 +52,10 @@ def _t200_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     throttles = table[voltages[0]][:, 0]
     for v, data in table.items():
         if not np.allclose(data[:, 0], throttles):
-            raise ValueError(f"T200 table: throttle grid at {v} V differs from the one at {voltages[0]} V")
+            raise UserError(f"T200 table: throttle grid at {v} V differs from the one at {voltages[0]} V")
     for name, grid in (("voltage", voltages), ("throttle", throttles)):
         if not np.allclose(np.diff(grid), grid[1] - grid[0]):
-            raise ValueError(f"T200 table: {name} grid is not uniform")
+            raise UserError(f"T200 table: {name} grid is not uniform")
     return voltages, throttles, np.stack([table[v][:, 1] for v in voltages])
 
 

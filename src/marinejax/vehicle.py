@@ -19,6 +19,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from marinejax.errors import MissingFileError, UserError
 from marinejax.hydro.params import HydroParams
 from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE, T200Curve, allocation_matrix, t200_curve
 
@@ -41,6 +42,18 @@ def model_dir() -> Path:
 def list_vehicles() -> list[str]:
     """Names of the available vehicles (MJCF file stems), computed when asked."""
     return sorted(p.stem for p in model_dir().glob("*.xml"))
+
+
+def env_name_prefix(vehicle: str) -> str:
+    """The prefix of vehicle `vehicle`'s env names (`<prefix>-<Task>`): the MJCF's custom text
+    `marinejax:env_name`, else the file stem in CamelCase (my_rov → MyRov). Reads the XML only."""
+    import xml.etree.ElementTree as ElementTree
+
+    path = model_dir() / f"{vehicle}.xml"
+    for text in ElementTree.parse(path).getroot().iter("text"):
+        if text.get("name") == _PREFIX + "env_name" and text.get("data"):
+            return text.get("data")
+    return "".join(part[:1].upper() + part[1:] for part in vehicle.split("_"))
 
 
 @struct.dataclass
@@ -118,18 +131,18 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     """Load a vehicle by name (see `list_vehicles()`) or from an MJCF file path ending in .xml,
     with its default or a named parameter set.
 
-    Raises ValueError naming the bad value and the valid choices for an unknown vehicle or
+    Raises UserError (a ValueError) naming the bad value and the valid choices for an unknown vehicle or
     parameter set, and for missing, non-finite or unphysical parameters.
     """
     if str(name).endswith(".xml"):
         path = Path(name)
         if not path.is_file():
-            raise FileNotFoundError(f"vehicle model file not found: {path}")
+            raise MissingFileError(f"vehicle model file not found: {path}")
         name = path.stem
     else:
         names = list_vehicles()
         if name not in names:
-            raise ValueError(f"unknown vehicle {name!r}; available vehicles: {names}")
+            raise UserError(f"unknown vehicle {name!r}; available vehicles: {names}")
         path = model_dir() / f"{name}.xml"
     m = mujoco.MjModel.from_xml_path(str(path))
     where = f"vehicle {name!r} ({path.name})"
@@ -138,24 +151,24 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     default = _text(m, _PREFIX + "default_set")
     param_set = param_set or default
     if param_set not in sets:
-        raise ValueError(f"{where}: unknown parameter set {param_set!r}; available: {sets}")
+        raise UserError(f"{where}: unknown parameter set {param_set!r}; available: {sets}")
     values = _numerics(m, f"{_PREFIX}{param_set}:")
     rigid = {k: values.pop(k) for k in list(values) if k in _RIGID_FIELDS}
     hydro = HydroParams.from_mapping(values, source=f"{where}, parameter set {param_set!r}")
 
     if m.nbody != 2 or m.body_jntnum[1] != 1 or m.jnt_type[m.body_jntadr[1]] != mujoco.mjtJoint.mjJNT_FREE:
-        raise ValueError(f"{where}: expected exactly one body with one free joint")
+        raise UserError(f"{where}: expected exactly one body with one free joint")
     body = 1
     if not (np.allclose(m.body_ipos[body], 0) and np.allclose(m.body_iquat[body], [1, 0, 0, 0])):
-        raise ValueError(f"{where}: the body frame origin must be the centre of gravity with principal axes "
+        raise UserError(f"{where}: the body frame origin must be the centre of gravity with principal axes "
                          f"(inertial pos 0 0 0, no rotation); got ipos {m.body_ipos[body]}, iquat {m.body_iquat[body]}")
     if not np.allclose(m.opt.gravity[:2], 0) or m.opt.gravity[2] >= 0:
-        raise ValueError(f"{where}: gravity must point along world -z, got {m.opt.gravity}")
+        raise UserError(f"{where}: gravity must point along world -z, got {m.opt.gravity}")
     for field, size in _RIGID_FIELDS.items():
         if field in rigid:
             v = rigid[field]
             if v.size != size or not np.all(np.isfinite(v)) or np.any(v <= 0):
-                raise ValueError(f"{where}, parameter set {param_set!r}: '{field}' must be {size} finite positive value(s), got {v.tolist()}")
+                raise UserError(f"{where}, parameter set {param_set!r}: '{field}' must be {size} finite positive value(s), got {v.tolist()}")
     if "mass" in rigid:
         m.body_mass[body] = rigid["mass"][0]
     if "inertia" in rigid:
@@ -167,10 +180,10 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         if match:
             sites[int(match.group(1))] = i
     if not sites or sorted(sites) != list(range(1, len(sites) + 1)):
-        raise ValueError(f"{where}: thruster sites must be named thruster1..thrusterN, found {sorted(sites)}")
+        raise UserError(f"{where}: thruster sites must be named thruster1..thrusterN, found {sorted(sites)}")
     ids = [sites[k] for k in sorted(sites)]
     if any(m.site_bodyid[i] != body for i in ids):
-        raise ValueError(f"{where}: every thruster site must belong to the vehicle body")
+        raise UserError(f"{where}: every thruster site must belong to the vehicle body")
     positions = np.array([m.site_pos[i] for i in ids])
     directions = []
     for i in ids:
@@ -181,13 +194,13 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     thr = _numerics(m, _PREFIX + "thruster:")
     model_name = _text(m, _PREFIX + "thruster:model")
     if model_name != "T200":
-        raise ValueError(f"{where}: thruster model {model_name!r} is not supported; available: ['T200']")
+        raise UserError(f"{where}: thruster model {model_name!r} is not supported; available: ['T200']")
     tc = float(thr.get("time_constant", [np.nan])[0])
     volt = float(thr.get("voltage", [np.nan])[0])
     if not (np.isfinite(tc) and tc >= 0):
-        raise ValueError(f"{where}: marinejax:thruster:time_constant must be finite and >= 0 s, got {tc}")
+        raise UserError(f"{where}: marinejax:thruster:time_constant must be finite and >= 0 s, got {tc}")
     if not (SUPPLY_VOLTAGE_RANGE[0] <= volt <= SUPPLY_VOLTAGE_RANGE[1]):
-        raise ValueError(f"{where}: marinejax:thruster:voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
+        raise UserError(f"{where}: marinejax:thruster:voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
     thrusters = ThrusterParams(
         allocation=jnp.asarray(allocation_matrix(positions, np.array(directions))),
         curve=t200_curve(),

@@ -24,8 +24,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from marinejax.benchmarks.common import fmt_rate, machine_info, positive
+from marinejax.benchmarks.common import fmt_rate, positive
 from marinejax.console import make_console
+from marinejax.machine import machine_info
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -4,11 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import time
-
-import numpy as np
 
 MIN_TIMED_CALLS = 5  # timed calls per variant (after the compiling one), at least ...
 MIN_TIMED_SECONDS = 0.5  # ... and until this much time has been measured
@@ -42,40 +38,6 @@ def time_calls(fns: dict) -> dict:
         out[name] = {"seconds": best, "calls": len(ts), "mean_seconds": sum(ts) / len(ts),
                      "compile_seconds": max(first[name] - best, 0.0)}
     return out
-
-
-def machine_info() -> dict:
-    import jax
-    import jaxlib
-    import mujoco
-
-    cpu = platform.processor() or ""
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.lower().startswith("model name"):
-                    cpu = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    return {
-        "platform": platform.platform(),
-        "cpu": cpu or platform.machine(),
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": usable,
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "jax": jax.__version__,
-        "jaxlib": jaxlib.__version__,
-        "mujoco": mujoco.__version__,
-        "backend": jax.default_backend(),
-        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-        "devices": [str(d) for d in jax.devices()],
-    }
 
 
 def parse_batch_sizes(text: str) -> list[int]:

@@ -19,8 +19,10 @@ import sys
 import time
 from pathlib import Path
 
-from marinejax.benchmarks.common import fmt_rate, machine_info, parse_batch_sizes, positive, time_calls
+from marinejax.benchmarks.common import fmt_rate, parse_batch_sizes, positive, time_calls
 from marinejax.console import make_console
+from marinejax.errors import UserError
+from marinejax.machine import machine_info
 
 DEFAULT_ENVS = "BlueROV2Heavy-StationKeeping,BlueROV2Heavy-CircleTracking,BlueROV2Heavy-HelixTracking,BlueROV2Heavy-LemniscateTracking"
 DEFAULT_BATCHES = "1,256,1024,4096,8192"
@@ -87,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     console = make_console()
     try:
         envs = {(n, integ, sub): E.make(n, integrator=integ, substeps=sub) for n in names for integ, sub in args.physics}
-    except ValueError as err:
+    except UserError as err:
         print(f"marinejax bench envs: error: {err}", file=sys.stderr)
         return 2
     info = machine_info()

@@ -7,7 +7,7 @@ For each batch size B it times, excluding compilation (one untimed call of each 
 warms up; then full and bare calls alternate and the best call of each is reported):
 
 1. marinejax full: hydrodynamics + T200 thrusters + lag, the jitted batched rollout
-   (`marinejax.physics._rollout`, what `marinejax.rollout` calls, without its host-side finite check);
+   (`marinejax.physics.rollout_batch`, what `marinejax.rollout` calls, without its host-side finite check);
 2. bare MJX: the same `mjx.Model`, the same vmap / scan-over-control-steps / scan-over-substeps
    structure, no fluid or thruster forces, so full/bare − 1 is the cost of the hydrodynamics;
 3. a NumPy baseline: the same equations written in plain NumPy (float64), one vehicle at a time in a
@@ -32,7 +32,6 @@ from marinejax.benchmarks.common import (
     MIN_TIMED_CALLS,
     MIN_TIMED_SECONDS,
     fmt_rate,
-    machine_info,
     parse_batch_sizes,
     positive,
     time_calls,
@@ -41,6 +40,8 @@ from marinejax.benchmarks.common import (
 import numpy as np
 
 from marinejax.console import make_console
+from marinejax.errors import UserError
+from marinejax.machine import machine_info
 from marinejax.physics import DEFAULT_INTEGRATOR, INTEGRATORS, check_integrator
 
 DEFAULT_BATCH_SIZES = "1,16,256,1024,4096,16384"
@@ -282,7 +283,7 @@ def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int
     import jax
     import jax.numpy as jnp
 
-    from marinejax.physics import _rollout, initial_state
+    from marinejax.physics import rollout_batch, initial_state
 
     rng = np.random.default_rng(seed)
     commands = jnp.asarray(rng.uniform(-0.3, 0.3, (batch, steps, vehicle.num_thrusters)), jnp.float32)
@@ -293,10 +294,10 @@ def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int
     bare = _bare_rollout()
 
     timed = time_calls({
-        "full": lambda: _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator),
+        "full": lambda: rollout_batch(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator),
         "bare": lambda: bare(sys_, state, commands, dt, substeps),
     })
-    out = _rollout(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator)
+    out = rollout_batch(sys_, state, commands, currents, dt, substeps, "thrusters", True, integrator)
     timed["finite"] = bool(np.all(np.isfinite(np.asarray(out.position))))
     return timed
 
@@ -374,14 +375,14 @@ def main(argv: list[str] | None = None) -> int:
                      f"(up to {MAX_BATCH_GPU} with a GPU)")
     try:
         vehicle = marinejax.load_vehicle(args.vehicle)
-    except (ValueError, FileNotFoundError) as err:
+    except UserError as err:
         print(f"marinejax bench physics: error: {err}", file=sys.stderr)
         return 2
 
     physics_dt = args.control_dt / args.substeps
     try:
         check_integrator(args.integrator, physics_dt)
-    except ValueError as err:
+    except UserError as err:
         parser.error(str(err))
     console.print("[bold]marinejax physics benchmark[/bold]")
     console.print(f"machine: {info['cpu']} | {info['cpu_count']} cores ({info['cpus_usable']} usable) | {info['platform']}"

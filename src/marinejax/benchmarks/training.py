@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from marinejax.benchmarks.common import machine_info, positive
+from marinejax.benchmarks.common import positive
+from marinejax.machine import machine_info
 
 DEFAULT_TARGET_M = 0.02
 
@@ -149,17 +150,17 @@ def plot_seeds(env_name: str, rows: list[dict[str, Any]], target: float, out: Pa
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from marinejax.cli import _key_values
+    from marinejax.cli import parse_key_values
     from marinejax.envs import list_envs
 
     unknown = [e for e in args.envs if e not in list_envs()]
     if unknown:
         print(f"marinejax bench training: error: unknown env {unknown[0]!r}; valid: {list_envs()}", file=sys.stderr)
         return 2
-    ppo = _key_values(args.ppo, "--ppo")
+    ppo = parse_key_values(args.ppo, "--ppo")
     if args.timesteps:
         ppo["num_timesteps"] = args.timesteps
-    env_overrides = _key_values(args.env, "--env")
+    env_overrides = parse_key_values(args.env, "--env")
     out_dir = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     info = machine_info()

@@ -2,15 +2,31 @@
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+
+A new task is one module (a `MarineEnv` subclass) plus one `register_task` line below; a new vehicle
+is one MJCF file in models/mjcf/ (see `registry`).
 """
 
 from marinejax.envs.base import EnvConfig, MarineEnv, ResetConfig, RewardConfig
 from marinejax.envs.current import CurrentConfig
 from marinejax.envs.randomization import RandomizationConfig, brax_randomization_fn
-from marinejax.envs.registry import get_default_config, list_envs, make, register_with_brax
+from marinejax.envs.registry import (
+    env_spec,
+    get_default_config,
+    list_envs,
+    make,
+    register_environment,
+    register_task,
+    register_with_brax,
+)
+from marinejax.envs.station_keeping import StationKeeping
+from marinejax.envs.tracking import Tracking
 from marinejax.envs.wrappers import wrap_for_training
 
-register_with_brax()
+register_task("StationKeeping", StationKeeping)
+register_task("CircleTracking", Tracking, kind="circle")
+register_task("HelixTracking", Tracking, kind="helix")
+register_task("LemniscateTracking", Tracking, kind="lemniscate")
 
 __all__ = [
     "CurrentConfig",
@@ -20,8 +36,12 @@ __all__ = [
     "ResetConfig",
     "RewardConfig",
     "brax_randomization_fn",
+    "env_spec",
     "get_default_config",
     "list_envs",
     "make",
+    "register_environment",
+    "register_task",
+    "register_with_brax",
     "wrap_for_training",
 ]

@@ -35,6 +35,7 @@ from marinejax.envs.config import check_range
 from marinejax.envs.current import CurrentConfig, sample_current, step_current
 from marinejax.envs.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
 from marinejax.envs.randomization import RandomizationConfig, apply_dynamics, nominal_dynamics, sample_dynamics
+from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import (
     COMMAND_MODES,
@@ -103,17 +104,17 @@ class EnvConfig:
 
     def __post_init__(self):
         if self.action_mode not in COMMAND_MODES:
-            raise ValueError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
+            raise UserError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
         for name in ("control_dt", "max_distance", "integral_error_clip"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"config '{name}' must be > 0, got {getattr(self, name)}")
+                raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
         if self.substeps < 1 or self.episode_length < 1:
-            raise ValueError(f"config 'substeps' and 'episode_length' must be >= 1, got {self.substeps}, {self.episode_length}")
+            raise UserError(f"config 'substeps' and 'episode_length' must be >= 1, got {self.substeps}, {self.episode_length}")
         check_integrator(self.integrator, self.control_dt / self.substeps)
         if not self.integral_time_constant >= 0:
-            raise ValueError(f"config 'integral_time_constant' must be >= 0 (0: off), got {self.integral_time_constant}")
+            raise UserError(f"config 'integral_time_constant' must be >= 0 (0: off), got {self.integral_time_constant}")
         if any(s <= 0 for s in self.wrench_scale):
-            raise ValueError(f"config 'wrench_scale' must be positive, got {self.wrench_scale}")
+            raise UserError(f"config 'wrench_scale' must be positive, got {self.wrench_scale}")
         for name in ("position", "depth", "tilt", "yaw", "velocity", "angular_velocity"):
             check_range(f"reset.{name}", (0.0, getattr(self.reset, name)), low=0.0)
 
@@ -148,7 +149,7 @@ class MarineEnv(Env):
         times = config.control_dt * np.arange(1, config.episode_length + 1)
         self._window_steps = int(np.sum(self.error_window(times)))
         if self._window_steps == 0:
-            raise ValueError(
+            raise UserError(
                 f"episode of {config.episode_length} steps x {config.control_dt} s has no step in the evaluation "
                 f"window ({self.error_window_description}); use a longer episode_length"
             )
@@ -205,7 +206,7 @@ class MarineEnv(Env):
     def step(self, state: State, action: jax.Array) -> State:
         cfg = self.config
         if action.shape != (self.action_size,):
-            raise ValueError(f"action must have shape ({self.action_size},) for this env ({cfg.action_mode} mode), got {action.shape}")
+            raise UserError(f"action must have shape ({self.action_size},) for this env ({cfg.action_mode} mode), got {action.shape}")
         info = dict(state.info)
         action = jnp.clip(action, -1.0, 1.0)
         rng, k_cur = jax.random.split(info["rng"])

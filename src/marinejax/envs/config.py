@@ -11,10 +11,12 @@ import dataclasses
 import math
 from typing import Any, Mapping, TypeVar
 
+from marinejax.errors import UserError
+
 C = TypeVar("C")
 
 
-class UnknownConfigKey(ValueError):
+class UnknownConfigKey(UserError):
     """An override names a config field that does not exist (the message lists the valid ones);
     `key` is the unknown key, dotted from the top of the config."""
 
@@ -29,28 +31,28 @@ def _check_value(path: str, old: Any, new: Any, variable_length: bool = False) -
             return apply_overrides(old, new, prefix=path + ".")
         if type(new) is type(old):
             return new
-        raise ValueError(f"config '{path}' is a section; pass a mapping of its fields, got {new!r}")
+        raise UserError(f"config '{path}' is a section; pass a mapping of its fields, got {new!r}")
     if isinstance(old, bool):
         if not isinstance(new, bool):
-            raise ValueError(f"config '{path}' must be true or false, got {new!r}")
+            raise UserError(f"config '{path}' must be true or false, got {new!r}")
         return new
     if isinstance(old, (int, float)) and not isinstance(old, bool):
         if isinstance(new, bool) or not isinstance(new, (int, float)):
-            raise ValueError(f"config '{path}' must be a number, got {new!r}")
+            raise UserError(f"config '{path}' must be a number, got {new!r}")
         if not math.isfinite(new):
-            raise ValueError(f"config '{path}' must be finite, got {new!r}")
+            raise UserError(f"config '{path}' must be finite, got {new!r}")
         if isinstance(old, int) and not float(new).is_integer():
-            raise ValueError(f"config '{path}' must be an integer, got {new!r}")
+            raise UserError(f"config '{path}' must be an integer, got {new!r}")
         return type(old)(new)
     if isinstance(old, tuple):
         if variable_length and old and isinstance(new, (tuple, list)) and len(new) >= 1:
             return tuple(_check_value(f"{path}[{i}]", old[0], n) for i, n in enumerate(new))
         if not isinstance(new, (tuple, list)) or len(new) != len(old):
-            raise ValueError(f"config '{path}' must be a sequence of {len(old)} values, got {new!r}")
+            raise UserError(f"config '{path}' must be a sequence of {len(old)} values, got {new!r}")
         return tuple(_check_value(f"{path}[{i}]", o, n) for i, (o, n) in enumerate(zip(old, new)))
     if isinstance(old, str) or old is None:
         if not (isinstance(new, str) or new is None):
-            raise ValueError(f"config '{path}' must be a string, got {new!r}")
+            raise UserError(f"config '{path}' must be a string, got {new!r}")
         return new
     return new
 
@@ -63,11 +65,11 @@ def apply_overrides(config: C, overrides: Mapping[str, Any], prefix: str = "") -
         if rest:
             sub = nested.setdefault(head, {})
             if not isinstance(sub, dict):
-                raise ValueError(f"config '{prefix}{head}' given both as a value and as a section")
+                raise UserError(f"config '{prefix}{head}' given both as a value and as a section")
             sub[rest] = value
         else:
             if isinstance(nested.get(head), dict) and not isinstance(value, Mapping):
-                raise ValueError(f"config '{prefix}{head}' given both as a value and as a section")
+                raise UserError(f"config '{prefix}{head}' given both as a value and as a section")
             nested[head] = value
     fields = {f.name: f for f in dataclasses.fields(config)}
     valid = list(fields)
@@ -86,10 +88,16 @@ def to_dict(config: Any) -> dict[str, Any]:
     return dataclasses.asdict(config)
 
 
-def check_range(name: str, value: tuple[float, float], low: float | None = None) -> None:
-    """Raise ValueError unless value is a finite (lo, hi) with lo <= hi (and lo >= low when given)."""
-    lo, hi = value
+def check_range(name: str, value: Any, low: float | None = None, positive: bool = False) -> None:
+    """Raise UserError unless value is a finite (lo, hi) with lo <= hi (and lo >= low when given,
+    lo > 0 when `positive`); `name` is the dotted config key for the message."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise UserError(f"config '{name}' must be a range (low, high), got {value!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-        raise ValueError(f"config '{name}' must be a finite range (low, high) with low <= high, got {value}")
+        raise UserError(f"config '{name}' must be a finite range (low, high) with low <= high, got {value!r}")
     if low is not None and lo < low:
-        raise ValueError(f"config '{name}' must not go below {low}, got {value}")
+        raise UserError(f"config '{name}' must not go below {low}, got {value!r}")
+    if positive and lo <= 0:
+        raise UserError(f"config '{name}' must be > 0, got {value!r}")

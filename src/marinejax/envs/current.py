@@ -16,6 +16,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.envs.config import check_range
+from marinejax.errors import UserError
 
 CURRENT_MODES = ("off", "constant", "ou")
 
@@ -30,12 +31,12 @@ class CurrentConfig:
 
     def __post_init__(self):
         if self.mode not in CURRENT_MODES:
-            raise ValueError(f"config 'current.mode' must be one of {list(CURRENT_MODES)}, got {self.mode!r}")
+            raise UserError(f"config 'current.mode' must be one of {list(CURRENT_MODES)}, got {self.mode!r}")
         check_range("current.speed", self.speed, low=0.0)
         if not 0 <= self.max_elevation_deg <= 90:
-            raise ValueError(f"config 'current.max_elevation_deg' must be in [0, 90], got {self.max_elevation_deg}")
+            raise UserError(f"config 'current.max_elevation_deg' must be in [0, 90], got {self.max_elevation_deg}")
         if self.ou_rate <= 0 or self.ou_sigma < 0:
-            raise ValueError(f"config 'current.ou_rate' must be > 0 and 'current.ou_sigma' >= 0, got {self.ou_rate}, {self.ou_sigma}")
+            raise UserError(f"config 'current.ou_rate' must be > 0 and 'current.ou_sigma' >= 0, got {self.ou_rate}, {self.ou_sigma}")
 
 
 @struct.dataclass

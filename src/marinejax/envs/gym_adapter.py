@@ -72,6 +72,7 @@ from gymnasium.vector.utils import batch_space
 from marinejax.envs.base import MarineEnv
 from marinejax.envs.config import UnknownConfigKey
 from marinejax.envs.registry import list_envs, make
+from marinejax.errors import UserError
 
 __all__ = ["MarineJaxEnv", "MarineJaxVectorEnv", "gymnasium_id", "register_gymnasium_envs"]
 
@@ -225,7 +226,7 @@ def _kernels(env_name: str, overrides: dict[str, Any]) -> _Kernels:
 
 def _check_render_mode(render_mode: str | None) -> None:
     if render_mode is not None and render_mode not in RENDER_MODES:
-        raise ValueError(f"render_mode={render_mode!r} is not supported; valid: None, {', '.join(map(repr, RENDER_MODES))}")
+        raise UserError(f"render_mode={render_mode!r} is not supported; valid: None, {', '.join(map(repr, RENDER_MODES))}")
 
 
 class _Frames:
@@ -233,7 +234,7 @@ class _Frames:
 
     def __init__(self, kernels: _Kernels, width: int, height: int):
         if int(width) < 1 or int(height) < 1:
-            raise ValueError(f"render_width and render_height must be >= 1, got {width} x {height}")
+            raise UserError(f"render_width and render_height must be >= 1, got {width} x {height}")
         self.kernels, self.width, self.height = kernels, int(width), int(height)
         self.renderer = None
 
@@ -255,7 +256,7 @@ class _Frames:
 def _float32_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     array = np.asarray(action, dtype=np.float32)
     if array.shape != shape:
-        raise ValueError(f"action must have shape {shape} (float32 in [-1, 1]), got shape {array.shape}")
+        raise UserError(f"action must have shape {shape} (float32 in [-1, 1]), got shape {array.shape}")
     return array
 
 
@@ -346,10 +347,10 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
                  render_width: int = 640, render_height: int = 480, **overrides: Any):
         _check_render_mode(render_mode)
         if int(num_envs) < 1:
-            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+            raise UserError(f"num_envs must be >= 1, got {num_envs}")
         mode = getattr(autoreset_mode, "value", autoreset_mode)
         if mode not in AUTORESET_MODES:
-            raise ValueError(f"autoreset_mode={autoreset_mode!r} is not supported; valid: {list(AUTORESET_MODES)} "
+            raise UserError(f"autoreset_mode={autoreset_mode!r} is not supported; valid: {list(AUTORESET_MODES)} "
                              "(or the gymnasium.vector.AutoresetMode members NEXT_STEP, SAME_STEP)")
         self.autoreset_mode = AUTORESET_MODES[mode]
         self.env_name = env_name
@@ -386,7 +387,7 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise ValueError(f"seed must be None, an int or a list of num_envs={self.num_envs} seeds, got {len(seeds)} seeds")
+                raise UserError(f"seed must be None, an int or a list of num_envs={self.num_envs} seeds, got {len(seeds)} seeds")
         return [int(self.np_random.integers(_SEED_BOUND)) if s is None else int(s) for s in seeds]
 
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
@@ -400,7 +401,7 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         if options is not None and "reset_mask" in options:
             mask = np.asarray(options["reset_mask"])
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
-                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}")
+                raise UserError(f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}")
             if self._carry is None:
                 raise gymnasium.error.ResetNeeded("a partial reset (reset_mask) needs a full reset() first")
         carry = self._kernels.vreset(_seed_keys(self._seeds(seed)))

@@ -15,6 +15,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.envs.config import check_range
+from marinejax.errors import UserError
 from marinejax.hydro.params import HydroParams
 from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE
 from marinejax.vehicle import VehicleSystem
@@ -42,9 +43,9 @@ class RandomizationConfig:
         check_range("randomization.thruster_time_constant", self.thruster_time_constant, low=0.0)
         check_range("randomization.voltage", self.voltage, low=SUPPLY_VOLTAGE_RANGE[0])
         if self.voltage[1] > SUPPLY_VOLTAGE_RANGE[1]:
-            raise ValueError(f"config 'randomization.voltage' must lie in {SUPPLY_VOLTAGE_RANGE} V, got {self.voltage}")
+            raise UserError(f"config 'randomization.voltage' must lie in {SUPPLY_VOLTAGE_RANGE} V, got {self.voltage}")
         if not 0 <= self.cob_offset < 0.1:
-            raise ValueError(f"config 'randomization.cob_offset' must be in [0, 0.1) m, got {self.cob_offset}")
+            raise UserError(f"config 'randomization.cob_offset' must be in [0, 0.1) m, got {self.cob_offset}")
 
 
 @struct.dataclass

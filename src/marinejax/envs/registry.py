@@ -1,51 +1,110 @@
 """Env names → constructors. Names are `<Vehicle>-<Task>`, e.g. `BlueROV2Heavy-StationKeeping`.
 
-Every task also has a `<Task>Disturbed` variant: the same task whose default config draws, per
-episode, new physics (`randomization`), an Ornstein-Uhlenbeck current of up to 0.3 m/s
-(`current`) and a constant external force and torque (`disturbance`).
+Vehicles are discovered: every MJCF file in `models/mjcf/` is a vehicle, whose envs are named by its
+custom text `marinejax:env_name` (else its file stem in CamelCase). Tasks are registered once, in
+`marinejax/envs/__init__.py`, with `register_task`; every vehicle gets every task. Every task also
+gets a `<Task>Disturbed` variant: the same task whose default config draws, per episode, new
+physics (`randomization`), an Ornstein-Uhlenbeck current of up to 0.3 m/s (`current`) and a
+constant external force and torque (`disturbance`). `register_environment` adds any other
+(name, task, vehicle, config) combination.
+
+The registry is the one piece of module state: it only grows, at import time (tasks) or when a
+user registers an env.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
+import functools
+from typing import Any, Callable
 
 from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.envs.config import apply_overrides
-from marinejax.envs.station_keeping import StationKeeping, StationKeepingConfig
-from marinejax.envs.tracking import Tracking, TrackingConfig
+from marinejax.errors import UserError
+from marinejax.vehicle import env_name_prefix, list_vehicles
 
-VEHICLES = {"BlueROV2Heavy": "bluerov2_heavy", "BlueROV2": "bluerov2"}
-_BASE_TASKS = {
-    "StationKeeping": (StationKeepingConfig, None),
-    "CircleTracking": (TrackingConfig, "circle"),
-    "HelixTracking": (TrackingConfig, "helix"),
-    "LemniscateTracking": (TrackingConfig, "lemniscate"),
-}
 DISTURBED = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
-# task name → (config class, trajectory kind or None for station keeping, default overrides)
-TASKS = {
-    **{t: (c, k, {}) for t, (c, k) in _BASE_TASKS.items()},
-    **{f"{t}Disturbed": (c, k, DISTURBED) for t, (c, k) in _BASE_TASKS.items()},
-}
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskSpec:
+    """A registered task: `factory(vehicle, config)` builds the env; `config` is its default."""
+
+    name: str
+    factory: Callable[[str, EnvConfig], MarineEnv]
+    config: EnvConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvSpec:
+    """A registered env: task name, vehicle (MJCF file stem) and default config."""
+
+    name: str
+    task: str
+    vehicle: str
+    config: EnvConfig
+
+
+_TASKS: dict[str, TaskSpec] = {}
+_CUSTOM_ENVS: dict[str, EnvSpec] = {}
+
+
+def register_task(name: str, env_class: type[MarineEnv], config: EnvConfig | None = None, **kwargs: Any) -> None:
+    """Register task `name` (and `<name>Disturbed`) for every vehicle: env_class(vehicle, config,
+    **kwargs) builds it; `config` defaults to env_class.default_config()."""
+    config = config if config is not None else env_class.default_config()
+    factory = functools.partial(_build, env_class, kwargs)
+    for task, default in ((name, config), (f"{name}Disturbed", apply_overrides(config, DISTURBED))):
+        if task in _TASKS:
+            raise UserError(f"task {task!r} is already registered")
+        _TASKS[task] = TaskSpec(task, factory, default)
+
+
+def _build(env_class: type[MarineEnv], kwargs: dict[str, Any], vehicle: str, config: EnvConfig) -> MarineEnv:
+    return env_class(vehicle, config=config, **kwargs)
+
+
+def register_environment(name: str, task: str, vehicle: str, config: EnvConfig | None = None) -> None:
+    """Register env `name`: registered task `task` on vehicle `vehicle` (see `list_vehicles()`) with
+    default config `config` (the task's default if None). It is then available to `make`,
+    `list_envs` and `marinejax train`; call `register_with_brax()` / `register_gymnasium_envs()` again
+    to add it to those registries."""
+    if name in list_envs():
+        raise UserError(f"env {name!r} is already registered")
+    if task not in _TASKS:
+        raise UserError(f"unknown task {task!r}; registered tasks: {list(_TASKS)}")
+    if vehicle not in list_vehicles():
+        raise UserError(f"unknown vehicle {vehicle!r}; available vehicles: {list_vehicles()}")
+    default = _TASKS[task].config
+    if config is not None and type(config) is not type(default):
+        raise UserError(f"task {task!r} takes a {type(default).__name__}, got {type(config).__name__}")
+    _CUSTOM_ENVS[name] = EnvSpec(name, task, vehicle, config if config is not None else default)
+
+
+def _vehicle_prefixes() -> dict[str, str]:
+    """Env-name prefix → vehicle file stem, for every vehicle file."""
+    return {env_name_prefix(v): v for v in list_vehicles()}
 
 
 def list_envs() -> list[str]:
-    """All registered env names."""
-    return [f"{v}-{t}" for v in VEHICLES for t in TASKS]
+    """All registered env names: every vehicle × every task, then the user-registered ones."""
+    return [f"{prefix}-{task}" for prefix in _vehicle_prefixes() for task in _TASKS] + list(_CUSTOM_ENVS)
 
 
-def _split(name: str) -> tuple[str, str]:
-    vehicle, _, task = name.partition("-")
-    if vehicle not in VEHICLES or task not in TASKS:
-        raise ValueError(f"unknown env {name!r}; registered envs: {list_envs()}")
-    return vehicle, task
+def env_spec(name: str) -> EnvSpec:
+    """The task, vehicle and default config of env `name`; raises UserError listing the registered envs."""
+    if name in _CUSTOM_ENVS:
+        return _CUSTOM_ENVS[name]
+    prefix, _, task = name.partition("-")
+    vehicle = _vehicle_prefixes().get(prefix)
+    if vehicle is None or task not in _TASKS:
+        raise UserError(f"unknown env {name!r}; registered envs: {list_envs()}")
+    return EnvSpec(name, task, vehicle, _TASKS[task].config)
 
 
 def get_default_config(name: str) -> EnvConfig:
     """The default (immutable) config of env `name`."""
-    _, task = _split(name)
-    config_class, _, defaults = TASKS[task]
-    return apply_overrides(config_class(), defaults)
+    return env_spec(name).config
 
 
 def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> MarineEnv:
@@ -53,23 +112,17 @@ def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> Marine
 
     Overrides are keyword arguments naming config fields; nested sections take a mapping, e.g.
     make("BlueROV2Heavy-StationKeeping", episode_length=400, reward={"effort": 0.1},
-    current={"mode": "ou"}). Unknown names or keys raise ValueError listing the valid ones.
+    current={"mode": "ou"}). Unknown names or keys raise UserError listing the valid ones.
     """
-    vehicle, task = _split(name)
-    config_class, kind, _ = TASKS[task]
-    config = config or get_default_config(name)
-    if not isinstance(config, config_class):
-        raise ValueError(f"env {name!r} takes a {config_class.__name__}, got {type(config).__name__}")
-    config = apply_overrides(config, overrides)
-    if kind is None:
-        return StationKeeping(VEHICLES[vehicle], config)
-    return Tracking(VEHICLES[vehicle], kind, config)
+    spec = env_spec(name)
+    config = config or spec.config
+    if not isinstance(config, type(spec.config)):
+        raise UserError(f"env {name!r} takes a {type(spec.config).__name__}, got {type(config).__name__}")
+    return _TASKS[spec.task].factory(spec.vehicle, apply_overrides(config, overrides))
 
 
 def register_with_brax() -> None:
     """Make every env available as `brax.envs.get_environment(name, **overrides)`."""
-    import functools
-
     from brax import envs as brax_envs
 
     for name in list_envs():

@@ -25,6 +25,7 @@ from flax import struct
 
 from marinejax.envs.base import EnvConfig, MarineEnv, ResetConfig, RewardConfig
 from marinejax.envs.trajectories import TrajectoryConfig, TrajectoryParams, reference, sample_params
+from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
@@ -42,7 +43,7 @@ class TrackingConfig(EnvConfig):
     def __post_init__(self):
         super().__post_init__()
         if self.num_reference_points < 1 or self.reference_spacing <= 0:
-            raise ValueError(
+            raise UserError(
                 f"config 'num_reference_points' must be >= 1 and 'reference_spacing' > 0, got "
                 f"{self.num_reference_points}, {self.reference_spacing}"
             )

@@ -36,6 +36,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from marinejax.envs.config import check_range
+from marinejax.errors import UserError
+
 KINDS = ("circle", "helix", "lemniscate")
 
 _LEMNISCATE_TABLE_SIZE = 1024  # segments of the s -> τ table (cubic Hermite, exact node slopes)
@@ -43,18 +46,7 @@ _LEMNISCATE_TABLE_SIZE = 1024  # segments of the s -> τ table (cubic Hermite, e
 
 def _check_kind(kind: str) -> None:
     if kind not in KINDS:
-        raise ValueError(f"unknown trajectory kind {kind!r}; valid kinds: {list(KINDS)}")
-
-
-def _check_range(name: str, value, positive: bool = False) -> None:
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"config 'trajectory.{name}' must be a range (low, high), got {value!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-        raise ValueError(f"config 'trajectory.{name}' must be a finite range (low, high) with low <= high, got {value!r}")
-    if positive and lo <= 0:
-        raise ValueError(f"config 'trajectory.{name}' must be > 0, got {value!r}")
+        raise UserError(f"unknown trajectory kind {kind!r}; valid kinds: {list(KINDS)}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,14 +64,14 @@ class TrajectoryConfig:
     random_heading: bool = True  # lemniscate: figure rotated about world z by a uniform angle (else 0)
 
     def __post_init__(self):
-        _check_range("speed", self.speed, positive=True)
-        _check_range("size", self.size, positive=True)
-        _check_range("helix_pitch", self.helix_pitch)
-        _check_range("center_z", self.center_z)
+        check_range("trajectory.speed", self.speed, positive=True)
+        check_range("trajectory.size", self.size, positive=True)
+        check_range("trajectory.helix_pitch", self.helix_pitch)
+        check_range("trajectory.center_z", self.center_z)
         if not (math.isfinite(self.center_xy) and self.center_xy >= 0):
-            raise ValueError(f"config 'trajectory.center_xy' must be finite and >= 0, got {self.center_xy!r}")
+            raise UserError(f"config 'trajectory.center_xy' must be finite and >= 0, got {self.center_xy!r}")
         if not (math.isfinite(self.ramp_time) and self.ramp_time >= 0):
-            raise ValueError(f"config 'trajectory.ramp_time' must be finite and >= 0, got {self.ramp_time!r}")
+            raise UserError(f"config 'trajectory.ramp_time' must be finite and >= 0, got {self.ramp_time!r}")
 
 
 @struct.dataclass

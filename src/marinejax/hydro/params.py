@@ -8,6 +8,8 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from marinejax.errors import UserError
+
 _SIZES = {
     "added_mass": 6,
     "linear_damping": 6,
@@ -45,21 +47,21 @@ class HydroParams:
         """
         unknown = sorted(set(values) - set(_SIZES))
         if unknown:
-            raise ValueError(f"{source}: unknown hydrodynamic field(s) {unknown}; valid: {sorted(_SIZES)}")
+            raise UserError(f"{source}: unknown hydrodynamic field(s) {unknown}; valid: {sorted(_SIZES)}")
         missing = sorted(set(_SIZES) - set(values))
         if missing:
-            raise ValueError(f"{source}: missing hydrodynamic field(s) {missing}")
+            raise UserError(f"{source}: missing hydrodynamic field(s) {missing}")
         arrays = {}
         for name, size in _SIZES.items():
             arr = np.asarray(values[name], dtype=np.float64).reshape(-1)
             if arr.size != size:
-                raise ValueError(f"{source}: '{name}' needs {size} value(s), got {arr.size}: {arr.tolist()}")
+                raise UserError(f"{source}: '{name}' needs {size} value(s), got {arr.size}: {arr.tolist()}")
             if not np.all(np.isfinite(arr)):
-                raise ValueError(f"{source}: '{name}' has non-finite values {arr.tolist()}")
+                raise UserError(f"{source}: '{name}' has non-finite values {arr.tolist()}")
             if name in _NONNEGATIVE and np.any(arr < 0):
-                raise ValueError(f"{source}: '{name}' must be >= 0 (positive magnitudes), got {arr.tolist()}")
+                raise UserError(f"{source}: '{name}' must be >= 0 (positive magnitudes), got {arr.tolist()}")
             if name in _POSITIVE and np.any(arr <= 0):
-                raise ValueError(f"{source}: '{name}' must be > 0, got {arr.tolist()}")
+                raise UserError(f"{source}: '{name}' must be > 0, got {arr.tolist()}")
             arrays[name] = jnp.asarray(arr if size > 1 else arr[0])
         return cls(**arrays)
 

@@ -18,12 +18,13 @@ import jax
 import numpy as np
 
 from marinejax.envs.base import MarineEnv
+from marinejax.errors import UserError
 from marinejax.train.hyperparams import TrainConfig
 
 SUCCESS_M = 0.1  # m: an episode succeeds when its evaluated mean position error is below this
 
 
-class CheckpointError(ValueError):
+class CheckpointError(UserError):
     """A checkpoint or run directory that cannot be used (missing, incomplete or corrupt)."""
 
 
@@ -45,7 +46,7 @@ def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Pat
     from marinejax.train.runner import CHECKPOINTS, best_checkpoint, latest_checkpoint
 
     if which not in CHECKPOINT_CHOICES:
-        raise ValueError(f"unknown checkpoint choice {which!r}; valid: {list(CHECKPOINT_CHOICES)}")
+        raise UserError(f"unknown checkpoint choice {which!r}; valid: {list(CHECKPOINT_CHOICES)}")
 
     shipped = shipped_policies()
     if not Path(path).exists() and str(path) in shipped:
@@ -83,10 +84,15 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: 
     env = build_env(config)
     try:
         net_config = json.loads((ckpt / "ppo_network_config.json").read_text())
+        absl = logging.getLogger("absl")
+        level = absl.level
         with warnings.catch_warnings():  # orbax warns about sharding metadata of CPU checkpoints
             warnings.simplefilter("ignore")
-            logging.getLogger("absl").setLevel(logging.ERROR)
-            params = ppo_checkpoint.load(ckpt)
+            absl.setLevel(logging.ERROR)  # ... and logs them through absl: quiet for this load only
+            try:
+                params = ppo_checkpoint.load(ckpt)
+            finally:
+                absl.setLevel(level)
     except Exception as err:  # orbax raises many kinds of errors on damaged files
         raise CheckpointError(f"checkpoint {ckpt} could not be read: {type(err).__name__}: {err}") from None
     if net_config.get("observation_size") != env.observation_size or net_config.get("action_size") != env.action_size:

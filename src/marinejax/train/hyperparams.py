@@ -10,7 +10,8 @@ import dataclasses
 from typing import Any, Mapping
 
 from marinejax.envs.config import apply_overrides
-from marinejax.envs.registry import _split
+from marinejax.envs.registry import env_spec
+from marinejax.errors import UserError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,17 +43,17 @@ class PPOConfig:
         for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
                      "num_updates_per_batch", "num_evals", "num_eval_envs"):
             if getattr(self, name) < 1:
-                raise ValueError(f"ppo '{name}' must be >= 1, got {getattr(self, name)}")
+                raise UserError(f"ppo '{name}' must be >= 1, got {getattr(self, name)}")
         if (self.batch_size * self.num_minibatches) % self.num_envs:
-            raise ValueError(
+            raise UserError(
                 f"ppo batch_size * num_minibatches ({self.batch_size} * {self.num_minibatches}) must be a "
                 f"multiple of num_envs ({self.num_envs})"
             )
         for name in ("learning_rate", "discounting", "gae_lambda", "clipping_epsilon", "reward_scaling"):
             if not getattr(self, name) > 0:
-                raise ValueError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
+                raise UserError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
         if not (self.discounting < 1 and self.gae_lambda <= 1):
-            raise ValueError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
+            raise UserError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,9 +85,10 @@ _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.it
 
 
 def tuned_config(env_name: str) -> TrainConfig:
-    """The tuned training settings of env `env_name` (raises listing the registered envs if unknown)."""
-    _, task = _split(env_name)
-    ppo, env_overrides = _TUNED[task]
+    """The tuned training settings of env `env_name` (raises listing the registered envs if unknown);
+    a task without tuned settings gets the station-keeping recipe, the most demanding one."""
+    task = env_spec(env_name).task
+    ppo, env_overrides = _TUNED.get(task, (_STATION, {}))
     return TrainConfig(env=env_name, ppo=ppo, env_overrides=dict(env_overrides))
 
 

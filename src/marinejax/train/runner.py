@@ -14,8 +14,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-import os
-import platform
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -27,6 +25,8 @@ from marinejax.envs import make, wrap_for_training
 from marinejax.envs.base import MarineEnv
 from marinejax.envs.config import to_dict
 from marinejax.envs.randomization import brax_randomization_fn
+from marinejax.errors import MissingFileError, UserError
+from marinejax.machine import machine_info
 from marinejax.train.hyperparams import PPOConfig, TrainConfig
 
 CHECKPOINTS = "checkpoints"
@@ -54,16 +54,10 @@ def build_env(config: TrainConfig) -> MarineEnv:
 
 
 def machine() -> dict[str, Any]:
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "jax_backend": jax.default_backend(),
-            "devices": [str(d) for d in jax.devices()], "jax": jax.__version__, "python": platform.python_version()}
+    """The machine a run trained on, as config.json records it."""
+    info = machine_info()
+    return {"cpu": info["cpu"], "cores": info["cpu_count"], "jax_backend": info["backend"], "devices": info["devices"],
+            "jax": info["jax"], "python": info["python"]}
 
 
 def check_devices(devices: int | None, ppo: PPOConfig) -> int:
@@ -71,10 +65,10 @@ def check_devices(devices: int | None, ppo: PPOConfig) -> int:
     available = jax.local_device_count()
     n = available if devices is None else devices
     if not 1 <= n <= available:
-        raise ValueError(f"devices must be between 1 and the {available} local device(s) "
+        raise UserError(f"devices must be between 1 and the {available} local device(s) "
                          f"({', '.join(str(d) for d in jax.local_devices())}), got {devices}")
     if ppo.num_envs % n:
-        raise ValueError(f"ppo num_envs ({ppo.num_envs}) must be a multiple of the number of devices ({n})")
+        raise UserError(f"ppo num_envs ({ppo.num_envs}) must be a multiple of the number of devices ({n})")
     return n
 
 
@@ -160,7 +154,7 @@ def train(
     if resume:
         ckpt = latest_checkpoint(run_dir)
         if ckpt is None:
-            raise FileNotFoundError(f"no checkpoint to resume from in {run_dir / CHECKPOINTS}")
+            raise MissingFileError(f"no checkpoint to resume from in {run_dir / CHECKPOINTS}")
         steps_done, restore = int(ckpt.name), ckpt
         lines = (run_dir / "metrics.jsonl").read_text().splitlines() if (run_dir / "metrics.jsonl").exists() else []
         records = [json.loads(line) for line in lines if line.strip()]

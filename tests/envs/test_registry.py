@@ -1,0 +1,70 @@
+"""The registry: vehicles come from their MJCF files, tasks from one registration each."""
+
+import os
+import shutil
+import subprocess
+import sys
+import uuid
+
+import jax
+import numpy as np
+import pytest
+
+import marinejax
+from marinejax.envs import StationKeeping, env_spec, register_environment, register_task
+from marinejax.errors import UserError
+from marinejax.vehicle import model_dir
+
+TASKS = ["StationKeeping", "CircleTracking", "HelixTracking", "LemniscateTracking"]
+
+
+def test_every_vehicle_file_gets_every_task_and_its_disturbed_variant():
+    envs = marinejax.list_envs()
+    for prefix in ("BlueROV2", "BlueROV2Heavy"):
+        for task in TASKS:
+            assert f"{prefix}-{task}" in envs and f"{prefix}-{task}Disturbed" in envs
+    spec = env_spec("BlueROV2-HelixTrackingDisturbed")
+    assert (spec.task, spec.vehicle) == ("HelixTrackingDisturbed", "bluerov2")
+    assert spec.config.disturbance.enabled and spec.config.randomization.enabled and spec.config.current.mode == "ou"
+
+
+def test_a_new_mjcf_file_is_a_new_vehicle_with_all_tasks():
+    """Adding a vehicle is one file: a copy of the BlueROV2 under a new name, nothing else."""
+    stem = f"testrov_{uuid.uuid4().hex[:8]}"
+    path = model_dir() / f"{stem}.xml"
+    text = (model_dir() / "bluerov2.xml").read_text().replace('data="BlueROV2"', 'data="TestRov"')
+    code = """
+import jax, marinejax
+names = [n for n in marinejax.list_envs() if n.startswith("TestRov-")]
+env = marinejax.make("TestRov-CircleTracking", episode_length=60)
+state = jax.jit(env.step)(jax.jit(env.reset)(jax.random.PRNGKey(0)), jax.numpy.zeros(env.action_size))
+print(len(names), env.vehicle.name, env.action_size, bool(jax.numpy.isfinite(state.obs).all()))
+"""
+    try:
+        path.write_text(text)
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, env=os.environ)
+    finally:
+        path.unlink(missing_ok=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split() == ["8", stem, "6", "True"]
+
+
+def test_register_environment_adds_a_named_variant():
+    config = marinejax.get_default_config("BlueROV2Heavy-StationKeeping")
+    name = f"MyStation-{uuid.uuid4().hex[:6]}"
+    register_environment(name, "StationKeeping", "bluerov2_heavy", config.__class__(episode_length=100, target_range=0.5))
+    assert name in marinejax.list_envs()
+    env = marinejax.make(name)
+    assert isinstance(env, StationKeeping) and env.config.episode_length == 100 and env.config.target_range == 0.5
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    assert np.isfinite(np.asarray(state.obs)).all()
+    with pytest.raises(UserError, match="already registered"):
+        register_environment(name, "StationKeeping", "bluerov2_heavy")
+    with pytest.raises(UserError, match="unknown task 'Hover'; registered tasks"):
+        register_environment("X-1", "Hover", "bluerov2_heavy")
+    with pytest.raises(UserError, match="unknown vehicle 'submarine'"):
+        register_environment("X-2", "StationKeeping", "submarine")
+    with pytest.raises(UserError, match="takes a StationKeepingConfig"):
+        register_environment("X-3", "StationKeeping", "bluerov2", marinejax.get_default_config("BlueROV2-CircleTracking"))
+    with pytest.raises(UserError, match="task 'StationKeeping' is already registered"):
+        register_task("StationKeeping", StationKeeping)
