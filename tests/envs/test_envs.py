@@ -9,21 +9,21 @@ import pytest
 
 import marinejax as mj
 import marinejax.envs as E
+from marinejax.control import run_steps, sequence_controller
 from marinejax.envs.current import CurrentConfig, sample_current, step_current
 from marinejax.physics import VehicleState
 
 
 def episode_fn(env):
-    """jit(vmap) of a full episode: per step obs, reward, done, and all metrics."""
+    """jit(vmap) of a full episode under given actions (the one closed-loop rollout, open-loop
+    controller): final state and, per step, obs, reward, done and all metrics."""
 
     def run(key, actions):
         state = env.reset(key)
-
-        def body(s, a):
-            s = env.step(s, a)
-            return s, (s.obs, s.reward, s.done, s.metrics)
-
-        return jax.lax.scan(body, state, actions)
+        controller = sequence_controller(actions)
+        final, _, out = run_steps(env, controller, state, controller.init(key), actions.shape[0],
+                                  lambda s: (s.obs, s.reward, s.done, s.metrics))
+        return final, out
 
     return jax.jit(jax.vmap(run))
 

@@ -62,11 +62,12 @@ def time_env(env, batch: int, steps: int) -> dict:
     import jax
     import jax.numpy as jnp
 
-    def run(state, key):
-        def body(s, k):
-            return env.step(s, jax.random.uniform(k, (env.action_size,), minval=-1.0, maxval=1.0)), None
+    from marinejax.control import random_controller, run_steps
 
-        return jax.lax.scan(body, state, jax.random.split(key, steps))[0]
+    controller = random_controller(env.action_size)
+
+    def run(state, key):
+        return run_steps(env, controller, state, controller.init(key), steps)[0]
 
     reset = jax.jit(jax.vmap(env.reset))
     run_b = jax.jit(jax.vmap(run))

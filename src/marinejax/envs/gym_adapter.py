@@ -72,6 +72,7 @@ from gymnasium.vector.utils import batch_space
 from marinejax.envs.base import MarineEnv
 from marinejax.envs.config import UnknownConfigKey
 from marinejax.envs.registry import list_envs, make
+from marinejax.envs.wrappers import where_done
 from marinejax.errors import UserError
 
 __all__ = ["MarineJaxEnv", "MarineJaxVectorEnv", "gymnasium_id", "register_gymnasium_envs"]
@@ -135,15 +136,6 @@ class _Carry(NamedTuple):
     key: jax.Array  # (N, 2) key of the last explicit reset
 
 
-def _where(mask: jax.Array, new, old):
-    """Per env: `new` where mask (N,) else `old`, over matching pytrees."""
-
-    def pick(a, b):
-        return jnp.where(jnp.reshape(mask, mask.shape + (1,) * (b.ndim - 1)), a, b)
-
-    return jax.tree.map(pick, new, old)
-
-
 class _Kernels:
     """One Brax env and its jitted single and batched functions."""
 
@@ -155,7 +147,7 @@ class _Kernels:
         self.vreset = jax.jit(self._vreset)
         self.vstep = jax.jit(self._vstep)
         self.vstep_same = jax.jit(self._vstep_same)
-        self.vmerge = jax.jit(_where)
+        self.vmerge = jax.jit(where_done)
         self.target = jax.jit(env.target_position)
 
     def _reset_where(self, mask: jax.Array, carry: _Carry, episode: jax.Array, state: State) -> State:
@@ -163,7 +155,7 @@ class _Kernels:
 
         def with_resets():
             fresh = jax.vmap(self.env.reset)(jax.vmap(jax.random.fold_in)(carry.key, episode))
-            return _where(mask, fresh, state)
+            return where_done(mask, fresh, state)
 
         # Reset only when some env needs it (jnp.any is a scalar: a real branch, not a select).
         return jax.lax.cond(jnp.any(mask), with_resets, lambda: state)

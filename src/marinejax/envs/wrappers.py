@@ -18,6 +18,16 @@ from brax.envs.wrappers.training import DomainRandomizationVmapWrapper, EpisodeW
 _TRANSITION_KEYS = ("truncation", "steps")
 
 
+def where_done(done: jax.Array, new, old):
+    """Per env: `new` where `done` (leading batch axes, bool or 0/1) else `old`, over matching pytrees.
+    The one masked selection of an auto-reset (training wrapper and Gymnasium vector env)."""
+
+    def pick(a, b):
+        return jnp.where(jnp.reshape(done, done.shape + (1,) * (b.ndim - done.ndim)) > 0, a, b)
+
+    return jax.tree.map(pick, new, old)
+
+
 class FullResetWrapper(Wrapper):
     """Batched env: where an episode ended, start a new one with `reset` (new randomness)."""
 
@@ -36,19 +46,14 @@ class FullResetWrapper(Wrapper):
         stepped = self.env.step(state, action)
         fresh = self.env.reset(reset_keys)
         done = stepped.done
-
-        def pick(new, old):
-            d = jnp.reshape(done, done.shape + (1,) * (old.ndim - done.ndim))
-            return jnp.where(d, new, old)
-
         info = dict(stepped.info)
         for k, v in fresh.info.items():
             if k not in _TRANSITION_KEYS and k in info:
-                info[k] = jax.tree.map(pick, v, info[k])
+                info[k] = where_done(done, v, info[k])
         info["reset_rng"] = next_keys
         return stepped.replace(
-            pipeline_state=jax.tree.map(pick, fresh.pipeline_state, stepped.pipeline_state),
-            obs=pick(fresh.obs, stepped.obs),
+            pipeline_state=where_done(done, fresh.pipeline_state, stepped.pipeline_state),
+            obs=where_done(done, fresh.obs, stepped.obs),
             info=info,
         )
 

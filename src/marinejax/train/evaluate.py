@@ -17,6 +17,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from marinejax.control import policy_controller, rollout
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.train.hyperparams import TrainConfig
@@ -115,19 +116,12 @@ def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict
     """
     steps = env.config.episode_length
 
-    def episode(key):
-        state = env.reset(key)
-
-        def body(s, _):
-            s = env.step(s, policy(s.obs))
-            q = s.pipeline_state.data.qpos
-            out = (q[:3], env.target_position(s.info), s.metrics["position_error"], q, s.done, s.metrics["heading_error_deg"])
-            return s, out
-
-        return jax.lax.scan(body, state, None, length=steps)[1]
+    def record(s):
+        q = s.pipeline_state.data.qpos
+        return (q[:3], env.target_position(s.info), s.metrics["position_error"], q, s.done, s.metrics["heading_error_deg"])
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    pos, target, err, qpos, done, head = jax.jit(jax.vmap(episode))(keys)
+    _, (pos, target, err, qpos, done, head) = rollout(env, policy_controller(policy), keys, steps, record)
     to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
     return {
         "time": env.config.control_dt * np.arange(1, steps + 1),
