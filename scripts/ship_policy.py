@@ -21,7 +21,7 @@ POLICIES = Path(__file__).resolve().parents[1] / "src" / "marinejax" / "policies
 
 def ship(run_dir: Path) -> Path:
     from marinejax.train.evaluate import evaluate_run
-    from marinejax.train.runner import BEST, CHECKPOINTS, best_checkpoint
+    from marinejax.train.checkpoints import BEST, CHECKPOINTS, best_checkpoint
 
     run_dir = Path(run_dir)
     config = json.loads((run_dir / "config.json").read_text())

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from marinejax.train.evaluate import evaluate_run, shipped_policies
+from marinejax.train.checkpoints import shipped_policies
+from marinejax.train.evaluate import evaluate_run
 from marinejax.train.hyperparams import tuned_config, with_overrides
 from marinejax.train.runner import train
 

@@ -27,10 +27,9 @@ from marinejax.envs.config import to_dict
 from marinejax.envs.randomization import brax_randomization_fn
 from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
+from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
 from marinejax.train.hyperparams import PPOConfig, TrainConfig
 
-CHECKPOINTS = "checkpoints"
-BEST = "best.json"
 WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
 
 
@@ -70,26 +69,6 @@ def check_devices(devices: int | None, ppo: PPOConfig) -> int:
     if ppo.num_envs % n:
         raise UserError(f"ppo num_envs ({ppo.num_envs}) must be a multiple of the number of devices ({n})")
     return n
-
-
-def latest_checkpoint(run_dir: Path) -> Path | None:
-    """Newest complete checkpoint directory of a run, or None."""
-    root = Path(run_dir) / CHECKPOINTS
-    steps = sorted((p for p in root.glob("*") if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
-    for p in reversed(steps):
-        if (p / "ppo_network_config.json").exists():
-            return p
-    return None
-
-
-def best_checkpoint(run_dir: Path) -> Path | None:
-    """The checkpoint named in the run's best.json (lowest evaluation error), or None."""
-    try:
-        best = json.loads((Path(run_dir) / BEST).read_text())
-    except (OSError, ValueError):
-        return None
-    path = Path(run_dir) / CHECKPOINTS / f"{int(best['step']):012d}"
-    return path if (path / "ppo_network_config.json").exists() else None
 
 
 def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:

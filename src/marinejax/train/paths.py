@@ -1,0 +1,44 @@
+"""Plots of evaluated episodes: the vehicle's path against the target or reference, and the error."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: int = 0) -> Path:
+    """PNG: the vehicle's path against the reference in 3-D and from the top, and the error over time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    p, r, t = result["position"][episode], result["target"][episode], result["time"]
+    fig = plt.figure(figsize=(14, 4.6))
+    station = bool(np.allclose(r, r[0]))  # station keeping: the reference is one point
+    ax = fig.add_subplot(1, 3, 1, projection="3d")
+    ax.plot(*(r[:1].T if station else r.T), "r*" if station else "k--", lw=1, ms=10, label="target" if station else "reference")
+    ax.plot(*p.T, "C0", lw=1.5, label="vehicle")
+    ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
+    ax.legend(loc="upper left")
+    ax2 = fig.add_subplot(1, 3, 2)
+    ax2.plot(r[:1, 0] if station else r[:, 0], r[:1, 1] if station else r[:, 1], "r*" if station else "k--", lw=1, ms=12,
+             label="target" if station else "reference")
+    ax2.plot(p[:, 0], p[:, 1], "C0", lw=1.5, label="vehicle")
+    ax2.plot(p[0, 0], p[0, 1], "go", label="start")
+    ax2.set_aspect("equal", adjustable="datalim")
+    ax2.set_xlabel("x (m)"), ax2.set_ylabel("y (m)"), ax2.set_title("top view")
+    ax2.legend()
+    ax3 = fig.add_subplot(1, 3, 3)
+    for e in range(result["error"].shape[0]):
+        ax3.plot(t, result["error"][e], color="0.8", lw=0.6)
+    ax3.plot(t, result["error"][episode], "C0", lw=1.5, label=f"episode {episode}")
+    ax3.plot(t, np.median(result["error"], axis=0), "C3", lw=1.2, label="median of episodes")
+    ax3.set_yscale("log"), ax3.set_xlabel("time (s)"), ax3.set_ylabel("position error (m)")
+    ax3.legend()
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
