@@ -25,9 +25,9 @@ def test_short_station_keeping_training_lowers_the_position_error(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking", "BlueROV2Heavy-HelixTracking",
-                                      "BlueROV2Heavy-LemniscateTracking", "BlueROV2Heavy-StationKeepingDisturbed"])
+@pytest.mark.parametrize("env_name", sorted(shipped_policies()))
 def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
+    """Every shipped policy (both vehicles, four tasks each, and the disturbed station keeping)."""
     run = shipped_policies()[env_name]
     recorded = json.loads((run / "eval.json").read_text())
     result = evaluate_run(env_name, out_dir=tmp_path, episodes=recorded["episodes"], seed=recorded["seed"], video=False)
@@ -58,3 +58,9 @@ def test_disturbance_trained_policy_beats_the_nominal_one_under_disturbance(tmp_
     assert robust["env_overrides"] == {} and nominal["seed"] == robust["seed"]
     assert robust["position_error_median_m"] <= 0.03 and robust["position_error_p95_m"] <= 0.06
     assert robust["position_error_mean_m"] < 0.5 * nominal["position_error_mean_m"], (robust, nominal)
+
+
+def test_every_task_of_both_vehicles_has_a_shipped_policy():
+    tasks = ["StationKeeping", "CircleTracking", "HelixTracking", "LemniscateTracking"]
+    expected = {f"{v}-{t}" for v in ("BlueROV2", "BlueROV2Heavy") for t in tasks} | {"BlueROV2Heavy-StationKeepingDisturbed"}
+    assert expected <= set(shipped_policies())
