@@ -95,6 +95,7 @@ class Vehicle:
     mj_model: mujoco.MjModel
     sys: VehicleSystem
     thruster_names: tuple[str, ...]
+    path: Path  # the MJCF file it was loaded from (rendering reloads it)
 
     @property
     def num_thrusters(self) -> int:
@@ -224,4 +225,5 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         mj_model=m,
         sys=sys,
         thruster_names=tuple(f"thruster{k}" for k in sorted(sites)),
+        path=Path(path),
     )

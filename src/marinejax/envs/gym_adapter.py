@@ -233,9 +233,8 @@ class _Frames:
     def __call__(self, qpos: np.ndarray, info: dict) -> np.ndarray:
         if self.renderer is None:
             from marinejax.render import FrameRenderer
-            from marinejax.vehicle import model_dir
 
-            self.renderer = FrameRenderer(model_dir() / f"{self.kernels.env.vehicle.name}.xml", self.width, self.height)
+            self.renderer = FrameRenderer(self.kernels.env.vehicle.path, self.width, self.height)
         target = np.asarray(self.kernels.target(info))
         return self.renderer.frame(np.asarray(qpos)[:7], target)
 

@@ -31,7 +31,6 @@ class MarineJaxSB3VecEnv(VecEnv):
 
     def __init__(self, env_name: str, num_envs: int, render_mode: str | None = None, **overrides: Any):
         self.venv = MarineJaxVectorEnv(env_name, num_envs, render_mode=render_mode, autoreset_mode="same_step", **overrides)
-        self.render_mode = render_mode
         self._actions: np.ndarray | None = None
         super().__init__(self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space)
 
@@ -76,7 +75,7 @@ class MarineJaxSB3VecEnv(VecEnv):
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
         """The attribute of the (one, shared) vector env, once per requested index."""
-        value = self.render_mode if attr_name == "render_mode" else getattr(self.venv, attr_name)
+        value = getattr(self.venv, attr_name)
         return [value for _ in self._indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:

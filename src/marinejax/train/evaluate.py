@@ -36,9 +36,8 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     summary["plot"] = str(plot_paths(result, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir / "paths.png"))
     if video:
         from marinejax.render import render_video
-        from marinejax.vehicle import model_dir
 
-        model = model_dir() / f"{env.vehicle.name}.xml"
+        model = env.vehicle.path
         try:
             summary["video"] = str(render_video(model, result["qpos"][0], result["target"][0], 1.0 / env.config.control_dt, out_dir / "episode0"))
         except RuntimeError as err:
