@@ -101,7 +101,7 @@ def _train(args: argparse.Namespace) -> int:
     console = make_console()
     target = _check_target(args.target_error)
     if args.resume:
-        if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir:
+        if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir or args.randomize:
             raise UserError("--resume takes only the run directory: the run's own settings are reused")
         run_dir = Path(args.resume)
         if not (run_dir / "config.json").exists():
@@ -115,7 +115,10 @@ def _train(args: argparse.Namespace) -> int:
             ppo["num_timesteps"] = args.timesteps
         if args.seed is not None:
             ppo["seed"] = args.seed
-        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=parse_key_values(args.env, "--env"))
+        env_overrides = parse_key_values(args.env, "--env")
+        if args.randomize:
+            env_overrides["randomization.enabled"] = True
+        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=env_overrides)
         from marinejax.train.runner import build_env
 
         build_env(config)  # validate the env overrides before creating a run directory
@@ -127,7 +130,7 @@ def _train(args: argparse.Namespace) -> int:
                   f"{config.ppo.num_envs} envs on {devices} {jax.default_backend()} device(s); compiling takes about a minute)")
     with TrainingProgress(console, config) as progress:
         try:
-            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update, randomize=args.randomize,
+            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
                             target_error=target, devices=args.devices)
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
@@ -214,7 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--devices", type=int, metavar="N",
                     help="train on the first N local devices (default: all of jax.local_devices()); the env batch is "
                          "split over them")
-    tr.add_argument("--randomize", action="store_true", help="Brax per-env-slot domain randomization during training")
+    tr.add_argument("--randomize", action="store_true", help="per-episode domain randomization (sets --env randomization.enabled=true)")
     tr.add_argument("--episodes", type=int, default=64, help="episodes of the final evaluation (default 64)")
     tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
     tr.add_argument("--no-video", action="store_true", help="skip the video of the final evaluation")
@@ -227,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--episodes", type=int, default=64, help="number of episodes (default 64)")
     ev.add_argument("--seed", type=int, default=12345, help="seed of the evaluation episodes")
     ev.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for the evaluation")
-    ev.add_argument("--randomize", action="store_true", help="evaluate with per-episode domain randomization")
+    ev.add_argument("--randomize", action="store_true", help="per-episode domain randomization (sets --env randomization.enabled=true)")
     ev.add_argument("--current", choices=["off", "constant", "ou"], help="evaluate in an ocean current")
     ev.add_argument("--out", type=Path, help="output directory (default RUN_DIR/eval)")
     ev.add_argument("--no-video", action="store_true", help="skip the video")

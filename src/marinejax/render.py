@@ -22,8 +22,9 @@ class FrameRenderer:
     MuJoCo chooses its OpenGL backend when it is first imported: on a machine without a display,
     start Python with MUJOCO_GL=egl."""
 
-    def __init__(self, model_path: str, width: int = 640, height: int = 480):
+    def __init__(self, model_path: str, width: int = 640, height: int = 480, qpos_adr: int = 0):
         self.model = mujoco.MjModel.from_xml_path(str(model_path))
+        self.qpos_adr = int(qpos_adr)  # where the vehicle's free joint starts in qpos (Vehicle.sys.qpos_adr)
         self.data = mujoco.MjData(self.model)
         try:
             self.renderer = mujoco.Renderer(self.model, height=height, width=width)
@@ -33,10 +34,12 @@ class FrameRenderer:
                 "without a display set MUJOCO_GL=egl (or osmesa) before Python starts"
             ) from err
 
-    def frame(self, qpos: np.ndarray, target: np.ndarray, path: np.ndarray | None = None) -> np.ndarray:
-        """The frame of free-joint pose `qpos` (7: world position m, quaternion w, x, y, z) with the
-        target at world position `target` (m) and the reference `path` (K, 3) if given."""
-        self.data.qpos[:7] = qpos
+    def frame(self, position: np.ndarray, quaternion: np.ndarray, target: np.ndarray, path: np.ndarray | None = None) -> np.ndarray:
+        """The frame of the vehicle at world `position` (m) and `quaternion` (w, x, y, z, body → world)
+        with the target at world position `target` (m) and the reference `path` (K, 3) if given."""
+        a = self.qpos_adr
+        self.data.qpos[a : a + 3] = position
+        self.data.qpos[a + 3 : a + 7] = quaternion
         mujoco.mj_forward(self.model, self.data)
         self.renderer.update_scene(self.data, camera="chase")
         scene = self.renderer.scene
@@ -53,13 +56,14 @@ class FrameRenderer:
         self.renderer.close()
 
 
-def render_frames(model_path: str, qpos: np.ndarray, targets: np.ndarray, width: int = 640, height: int = 480) -> list[np.ndarray]:
-    """Frames of a recorded episode: poses `qpos` (T, 7), targets (T, 3); the targets, thinned to
-    about 60 points, are drawn as the reference path."""
-    renderer = FrameRenderer(model_path, width, height)
+def render_frames(model_path: str, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, qpos_adr: int = 0,
+                  width: int = 640, height: int = 480) -> list[np.ndarray]:
+    """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m);
+    the targets, thinned to about 60 points, are drawn as the reference path."""
+    renderer = FrameRenderer(model_path, width, height, qpos_adr)
     try:
         path = targets[:: max(1, len(targets) // 60)]
-        return [renderer.frame(q, target, path) for q, target in zip(qpos, targets)]
+        return [renderer.frame(p, q, target, path) for p, q, target in zip(position, quaternion, targets)]
     finally:
         renderer.close()
 
@@ -81,14 +85,16 @@ def write_video(frames: list[np.ndarray], fps: float, out_stem: Path) -> Path:
         return path
 
 
-def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: float, out_stem: Path) -> Path:
-    """Render one episode offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
+def render_video(model_path: Path, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, fps: float,
+                 out_stem: Path, qpos_adr: int = 0) -> Path:
+    """Render one episode (arrays as `render_frames`) offscreen (MuJoCo, EGL) in a subprocess;
+    returns the MP4 (or GIF) path.
 
     MuJoCo picks its OpenGL backend when it is first imported, so rendering runs in a child
     process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
     """
     data = out_stem.with_suffix(".npz")
-    np.savez(data, qpos=qpos, targets=targets, fps=fps, model=str(model_path))
+    np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_path), qpos_adr=qpos_adr)
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.run([sys.executable, "-m", "marinejax.render", str(data), str(out_stem)],
                           env=env, capture_output=True, text=True)
@@ -100,7 +106,7 @@ def render_video(model_path: Path, qpos: np.ndarray, targets: np.ndarray, fps: f
 
 def main(argv: list[str]) -> int:
     data = np.load(argv[0])
-    frames = render_frames(str(data["model"]), data["qpos"], data["targets"])
+    frames = render_frames(str(data["model"]), data["position"], data["quaternion"], data["targets"], int(data["qpos_adr"]))
     print(write_video(frames, float(data["fps"]), Path(argv[1])))
     return 0
 

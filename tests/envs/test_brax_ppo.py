@@ -1,4 +1,5 @@
-"""Brax's PPO trains our envs directly, with our full-reset wrapper and with Brax's randomization_fn."""
+"""Brax's PPO trains our envs directly, with our full-reset wrapper, per-episode randomization and
+an asymmetric critic on the privileged observation."""
 
 import functools
 
@@ -10,8 +11,11 @@ import marinejax.envs as E
 
 
 @pytest.mark.slow
-def test_ppo_train_runs_on_station_keeping_with_randomization():
-    env = E.make("BlueROV2Heavy-StationKeeping", episode_length=10)
+@pytest.mark.parametrize("privileged", [False, True])
+def test_ppo_train_runs_on_station_keeping_with_randomization(privileged):
+    env = E.make("BlueROV2Heavy-StationKeeping", episode_length=10, randomization={"enabled": True},
+                 privileged_observation=privileged)
+    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if privileged else {}
     progress = []
     _, params, metrics = ppo.train(
         environment=env,
@@ -28,9 +32,9 @@ def test_ppo_train_runs_on_station_keeping_with_randomization():
             __import__("brax.training.agents.ppo.networks", fromlist=["make_ppo_networks"]).make_ppo_networks,
             policy_hidden_layer_sizes=(16,),
             value_hidden_layer_sizes=(16,),
+            **keys,
         ),
         wrap_env_fn=E.wrap_for_training,
-        randomization_fn=E.brax_randomization_fn(E.RandomizationConfig(enabled=True)),
         seed=0,
         progress_fn=lambda step, m: progress.append((step, m)),
     )

@@ -10,7 +10,7 @@ import pytest
 import marinejax as mj
 import marinejax.envs as E
 from marinejax.control import run_steps, sequence_controller
-from marinejax.envs.current import CurrentConfig, sample_current, step_current
+from marinejax.plant.current import CurrentConfig, sample_current, step_current
 from marinejax.physics import VehicleState
 
 
@@ -64,10 +64,10 @@ def test_station_reward_is_largest_at_zero_error(sk):
     state = sk.reset(jax.random.PRNGKey(0))
     task = state.info["task"]
     zero = jnp.zeros(8)
-    evaluate = jax.jit(lambda vs, a: sk._evaluate(vs, state.info, a))
+    reward_terms = jax.jit(lambda vs, a: sk.reward_terms(vs, state.info, a))
 
     def reward(vs, a=zero):
-        _, terms, _ = evaluate(vs, a)
+        terms = reward_terms(vs, a)
         return sum(getattr(sk.config.reward, k) * float(v) for k, v in terms.items())
 
     best = reward(at(task.position, task.yaw))
@@ -88,7 +88,8 @@ def test_station_reward_terms_follow_their_formulas(sk):
     state = sk.reset(jax.random.PRNGKey(0))
     task = state.info["task"]
     d = 0.5
-    obs, terms, errors = sk._evaluate(at(task.position + jnp.array([0.0, d, 0.0]), task.yaw + 0.3), state.info, jnp.full(8, 0.5))
+    vs, action = at(task.position + jnp.array([0.0, d, 0.0]), task.yaw + 0.3), jnp.full(8, 0.5)
+    obs, terms, errors = sk.observe(vs, state.info, action), sk.reward_terms(vs, state.info, action), sk.errors(vs, state.info)
     w = sk.config.reward
     assert float(errors["position_error"]) == pytest.approx(d, rel=1e-5)
     assert float(terms["position"]) == pytest.approx(1 / (1 + (d / w.position_scale) ** 2), rel=1e-5)
@@ -145,30 +146,38 @@ def test_domain_randomization_changes_parameters_and_dynamics():
     keys = jax.random.split(jax.random.PRNGKey(3), 16)
     reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
     s = reset(keys)
-    dyn = s.info["dynamics"]
+    dyn = s.info["params"]
     assert np.std(np.asarray(dyn.mass)) > 0.1 and np.std(np.asarray(dyn.hydro.added_mass[:, 2])) > 0.5
     assert np.std(np.asarray(dyn.voltage)) > 0.3
     s_nom = jax.jit(jax.vmap(nominal.reset))(keys)
-    np.testing.assert_allclose(np.asarray(s_nom.info["dynamics"].mass), 13.5, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(s_nom.info["params"].mass), 13.5, rtol=1e-6)
     # passive sinking: the heavier (net weight W - B) a vehicle, the faster it sinks
-    z0 = np.asarray(s.pipeline_state.data.qpos[:, 2])
+    position = jax.vmap(lambda ps: env.plant.vehicle_state(ps).position)
+    z0 = np.asarray(position(s.pipeline_state)[:, 2])
     for _ in range(20):
         s = step(s, jnp.zeros((16, 8)))
-    sink = z0 - np.asarray(s.pipeline_state.data.qpos[:, 2])
+    sink = z0 - np.asarray(position(s.pipeline_state)[:, 2])
     g = 9.81
     net_weight = np.asarray(dyn.mass) * g - np.asarray(dyn.hydro.fluid_density * g * dyn.hydro.volume)
     assert np.corrcoef(net_weight, sink)[0, 1] > 0.9
 
 
-def test_brax_randomization_fn_gives_each_slot_its_own_physics(sk):
-    fn = E.brax_randomization_fn(E.RandomizationConfig(enabled=True))
-    keys = jax.random.split(jax.random.PRNGKey(0), 4)
-    env = E.wrap_for_training(sk, episode_length=10, randomization_fn=lambda sys: fn(sys, rng=keys))
+def test_training_wrapper_gives_each_slot_and_each_episode_its_own_physics():
+    """Randomization is per episode (the plant draws it at every reset): in the training wrapper each
+    slot starts with its own parameters and gets new ones when its episode ends. Brax's per-slot
+    randomization_fn is refused with a pointer to the config."""
+    rand = E.make("BlueROV2Heavy-StationKeeping", randomization={"enabled": True}, episode_length=3)
+    env = E.wrap_for_training(rand, episode_length=3)
     s = jax.jit(env.reset)(jax.random.split(jax.random.PRNGKey(1), 4))
-    masses = np.asarray(s.info["dynamics"].mass)
+    masses = np.asarray(s.info["params"].mass)
     assert len(set(np.round(masses, 5))) == 4
-    s = jax.jit(env.step)(s, jnp.zeros((4, 8)))
+    step = jax.jit(env.step)
+    for _ in range(3):  # the third step truncates every episode: all four slots start anew
+        s = step(s, jnp.zeros((4, 8)))
     assert np.all(np.isfinite(np.asarray(s.obs)))
+    assert not np.any(np.isclose(np.asarray(s.info["params"].mass), masses))
+    with pytest.raises(ValueError, match="randomization=\\{'enabled': True\\}"):
+        E.wrap_for_training(rand, episode_length=3, randomization_fn=lambda sys: (sys, None))
 
 
 def test_passive_vehicle_drifts_with_the_current():
@@ -177,14 +186,15 @@ def test_passive_vehicle_drifts_with_the_current():
     keys = jax.random.split(jax.random.PRNGKey(4), 4)
     reset, step = jax.jit(jax.vmap(env.reset)), jax.jit(jax.vmap(env.step))
     s = reset(keys)
-    current = np.asarray(s.info["current"].value)
+    current = np.asarray(s.pipeline_state.current.value)
     assert np.all(np.linalg.norm(current, axis=1) >= 0.2)
-    p0 = np.asarray(s.pipeline_state.data.qpos[:, :3])
+    position = jax.vmap(lambda ps: env.plant.vehicle_state(ps).position)
+    p0 = np.asarray(position(s.pipeline_state))
     for _ in range(200):  # 10 s
         s = step(s, jnp.zeros((4, 8)))
-    v_world = np.asarray(s.pipeline_state.data.qvel[:, :2])
+    v_world = np.asarray(s.pipeline_state.physics.data.qvel[:, :2])
     np.testing.assert_allclose(v_world, current[:, :2], atol=0.03)
-    drift = np.asarray(s.pipeline_state.data.qpos[:, :2]) - p0[:, :2]
+    drift = np.asarray(position(s.pipeline_state))[:, :2] - p0[:, :2]
     cos = np.sum(drift * current[:, :2], 1) / np.linalg.norm(drift, axis=1) / np.linalg.norm(current[:, :2], axis=1)
     assert np.all(cos > 0.99)
 
@@ -250,7 +260,6 @@ def test_integral_observation_is_the_leaky_clipped_error_integral(name):
     observation components are its body-frame position part and its heading part."""
     from marinejax.envs.base import heading_error
     from marinejax.frames import quat_to_mat
-    from marinejax.physics import from_physics
 
     env = E.make(name)
     c = env.config
@@ -261,7 +270,7 @@ def test_integral_observation_is_the_leaky_clipped_error_integral(name):
     action = jnp.full(env.action_size, 0.2)
     for _ in range(40):  # 2 s: long enough for the clip (start errors up to 2 m) and the leak to matter
         state = step(state, action)
-        vs = from_physics(env.sys, state.pipeline_state)
+        vs = env.plant.vehicle_state(state.pipeline_state)
         error = np.concatenate([np.asarray(env.target_position(state.info) - vs.position),
                                 [float(heading_error(vs.quaternion, state.info["task"].yaw))]])
         expected = leak * expected + c.control_dt * np.clip(error, -c.integral_error_clip, c.integral_error_clip)
@@ -293,8 +302,8 @@ def test_disturbance_force_pushes_the_vehicle_along_its_world_direction():
         step = jax.jit(env.step)
         for _ in range(60):  # 3 s
             state = step(state, jnp.zeros(env.action_size))
-        finals.append(np.asarray(state.pipeline_state.data.qpos[:3]))
-    force = np.asarray(state.info["disturbance"][:3])
+        finals.append(np.asarray(env.plant.vehicle_state(state.pipeline_state).position))
+    force = np.asarray(state.info["params"].disturbance[:3])
     assert np.linalg.norm(force) == pytest.approx(4.0, rel=1e-5)
     drift = finals[1] - finals[0]
     assert np.linalg.norm(drift) > 0.05

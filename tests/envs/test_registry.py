@@ -68,3 +68,49 @@ def test_register_environment_adds_a_named_variant():
         register_environment("X-3", "StationKeeping", "bluerov2", marinejax.get_default_config("BlueROV2-CircleTracking"))
     with pytest.raises(UserError, match="task 'StationKeeping' is already registered"):
         register_task("StationKeeping", StationKeeping)
+
+
+# A whole new task: one class and one registration (what `docs/architecture.md` promises).
+NEW_TASK = '''
+import jax, jax.numpy as jnp
+from flax import struct
+from marinejax.envs import MarineEnv, register_task
+from marinejax.frames import quat_to_mat
+
+@struct.dataclass
+class Depth:
+    position: jnp.ndarray  # (3,) m, world
+    yaw: jnp.ndarray  # () rad
+
+class DepthChange(MarineEnv):
+    """Start at the surface-ish depth -1 m and hold a point 2 m deeper."""
+    def _sample_task(self, rng):
+        return Depth(position=jnp.array([0.0, 0.0, -3.0]), yaw=jax.random.uniform(rng, minval=-3.1, maxval=3.1))
+    def target_position(self, info):
+        return info["task"].position
+    def _initial_pose(self, rng, task):
+        return self._random_start(rng, task.position + jnp.array([0.0, 0.0, 2.0]), task.yaw)
+    def observe(self, vs, info, action):
+        error = quat_to_mat(vs.quaternion).T @ (info["task"].position - vs.position)
+        return jnp.concatenate([error, self._attitude_observation(vs, info["task"].yaw), action])
+    def reward_terms(self, vs, info, action):
+        d = jnp.linalg.norm(info["task"].position - vs.position)
+        return {"position": jnp.exp(-d), **self._attitude_terms(vs, info["task"].yaw, action, info["last_action"])}
+
+register_task("DepthChange", DepthChange)
+'''
+
+
+def test_a_new_task_is_one_class_and_one_registration():
+    code = NEW_TASK + """
+import marinejax
+names = sorted(n for n in marinejax.list_envs() if "DepthChange" in n)
+env = marinejax.make("BlueROV2-DepthChangeDisturbed")
+state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+state = jax.jit(env.step)(state, jnp.zeros(env.action_size))
+print(" ".join(names), env.observation_size, bool(jnp.isfinite(state.obs).all()))
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, env=os.environ)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split() == ["BlueROV2-DepthChange", "BlueROV2-DepthChangeDisturbed", "BlueROV2Heavy-DepthChange",
+                                   "BlueROV2Heavy-DepthChangeDisturbed", "24", "True"]

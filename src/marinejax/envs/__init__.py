@@ -8,8 +8,7 @@ is one MJCF file in models/mjcf/ (see `registry`).
 """
 
 from marinejax.envs.base import EnvConfig, MarineEnv, ResetConfig, RewardConfig
-from marinejax.envs.current import CurrentConfig
-from marinejax.envs.randomization import RandomizationConfig, brax_randomization_fn
+from marinejax.plant import CurrentConfig, DisturbanceConfig, RandomizationConfig
 from marinejax.envs.registry import (
     env_spec,
     get_default_config,
@@ -30,12 +29,12 @@ register_task("LemniscateTracking", Tracking, kind="lemniscate")
 
 __all__ = [
     "CurrentConfig",
+    "DisturbanceConfig",
     "EnvConfig",
     "MarineEnv",
     "RandomizationConfig",
     "ResetConfig",
     "RewardConfig",
-    "brax_randomization_fn",
     "env_spec",
     "get_default_config",
     "list_envs",

@@ -1,13 +1,21 @@
-"""The shared machinery of every marinejax task: a Brax `Env` over one vehicle.
+"""The shared machinery of every marinejax task: a Brax `Env` over one `Plant` (vehicle + physics).
 
 A task subclass draws its episode target (`_sample_task`), places the vehicle (`_initial_pose`),
-and computes its observation, reward terms and tracking error (`_evaluate`). Everything here is
+says where the vehicle should be (`target_position`) and when its error counts (`error_window`),
+and defines its observation (`observe`) and reward terms (`reward_terms`). The position and heading
+errors are the base's (`errors`), from `target_position` and the task's yaw. Everything here is
 pure and jit/vmap-able; names and sizes are resolved at construction.
 
-State.info holds all episode randomness, so a full reset re-draws it:
-  rng, time (s since episode start), task (the target or trajectory), current (CurrentState),
-  dynamics (the physical parameters of this episode), disturbance (a constant external force and
-  torque, `envs.disturbance`), last_action, integral (the integrated error, see below).
+State.pipeline_state is the `PlantState` (MJX data, thruster lag, ocean current). State.info holds
+all episode randomness, so a full reset re-draws it:
+  rng, time (s since episode start), task (the target or trajectory), params (`PlantParams`: the
+  physical parameters and disturbance of this episode), last_action, integral (see below).
+`reset(rng, params)` starts an episode with parameters of your own instead of drawn ones.
+
+Observation: an array (the task's observation, then the integral below). With
+`privileged_observation=True` it is a dict: "state" is that array (what the policy sees) and
+"privileged_state" appends what no sensor gives (current, disturbance, the episode's parameters,
+`Plant.privileged`) for an asymmetric critic (Brax PPO: `value_obs_key="privileged_state"`).
 
 Integral action: a policy that sees only the present error cannot remove a steady offset (net
 weight, a current, a disturbance force) that it was not trained on. Every task therefore appends to
@@ -31,22 +39,12 @@ import jax.numpy as jnp
 import numpy as np
 from brax.envs.base import Env, State
 
-from marinejax.envs.config import check_range
-from marinejax.envs.current import CurrentConfig, sample_current, step_current
-from marinejax.envs.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
-from marinejax.envs.randomization import RandomizationConfig, apply_dynamics, nominal_dynamics, sample_dynamics
+from marinejax.config import check_range
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
-from marinejax.physics import (
-    COMMAND_MODES,
-    VehicleState,
-    check_integrator,
-    control_step,
-    from_physics,
-    to_physics,
-    with_timestep,
-)
-from marinejax.vehicle import Vehicle, load_vehicle
+from marinejax.physics import VehicleState
+from marinejax.plant import Plant, PlantConfig, PlantParams, PlantState
+from marinejax.vehicle import Vehicle
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,38 +81,27 @@ class RewardConfig:
 
 
 @dataclasses.dataclass(frozen=True)
-class EnvConfig:
-    """Settings shared by every task. Times in s, lengths in m."""
+class EnvConfig(PlantConfig):
+    """Settings shared by every task: the plant's (`PlantConfig`: timing, integrator, action mode,
+    current, randomization, disturbance) and the episode's. Times in s, lengths in m."""
 
-    param_set: str | None = None  # vehicle parameter set (None: the vehicle's default)
-    control_dt: float = 0.05  # s per action (20 Hz)
-    substeps: int = 1  # physics steps per action (50 ms with the second-order midpoint integrator)
-    integrator: str = "midpoint"  # "midpoint" (second order) or "euler" (first order, needs <= 0.02 s steps)
     episode_length: int = 200  # actions per episode (truncation, applied by the training wrapper)
-    action_mode: str = "thrusters"  # thrusters: throttles in [−1, 1]; wrench: body wrench / wrench_scale
-    wrench_scale: tuple[float, float, float, float, float, float] = (80.0, 80.0, 100.0, 15.0, 15.0, 15.0)  # N, N m
     max_distance: float = 5.0  # m from the target: the episode terminates beyond
     integral_time_constant: float = 2.0  # s, leak of the integrated error in the observation; 0: not observed
     integral_error_clip: float = 0.2  # m and rad, per axis: the integrand is clipped to ± this
+    privileged_observation: bool = False  # obs {"state", "privileged_state"} for an asymmetric critic
     reward: RewardConfig = RewardConfig()
     reset: ResetConfig = ResetConfig()
-    current: CurrentConfig = CurrentConfig()
-    randomization: RandomizationConfig = RandomizationConfig()
-    disturbance: DisturbanceConfig = DisturbanceConfig()
 
     def __post_init__(self):
-        if self.action_mode not in COMMAND_MODES:
-            raise UserError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
-        for name in ("control_dt", "max_distance", "integral_error_clip"):
+        super().__post_init__()
+        for name in ("max_distance", "integral_error_clip"):
             if not getattr(self, name) > 0:
                 raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
-        if self.substeps < 1 or self.episode_length < 1:
-            raise UserError(f"config 'substeps' and 'episode_length' must be >= 1, got {self.substeps}, {self.episode_length}")
-        check_integrator(self.integrator, self.control_dt / self.substeps)
+        if self.episode_length < 1:
+            raise UserError(f"config 'episode_length' must be >= 1, got {self.episode_length}")
         if not self.integral_time_constant >= 0:
             raise UserError(f"config 'integral_time_constant' must be >= 0 (0: off), got {self.integral_time_constant}")
-        if any(s <= 0 for s in self.wrench_scale):
-            raise UserError(f"config 'wrench_scale' must be positive, got {self.wrench_scale}")
         for name in ("position", "depth", "tilt", "yaw", "velocity", "angular_velocity"):
             check_range(f"reset.{name}", (0.0, getattr(self.reset, name)), low=0.0)
 
@@ -137,15 +124,12 @@ class MarineEnv(Env):
 
     config_class = EnvConfig
     error_window_description = "every step"  # what `error_window` selects, for reports
+    success_threshold_m = 0.1  # m: an episode succeeds when its mean error over the window is below this
 
-    def __init__(self, vehicle: str, config: EnvConfig):
+    def __init__(self, vehicle: str | Vehicle, config: EnvConfig):
         self.config = config
-        self.vehicle: Vehicle = load_vehicle(vehicle, param_set=config.param_set)
-        # Brax's domain-randomization wrapper swaps this attribute while tracing; read it only here.
-        self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
-        n = self.vehicle.num_thrusters
-        self._action_size = n if config.action_mode == "thrusters" else 6
-        self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+        self.plant = Plant(vehicle, config)
+        self.vehicle: Vehicle = self.plant.vehicle
         times = config.control_dt * np.arange(1, config.episode_length + 1)
         self._window_steps = int(np.sum(self.error_window(times)))
         if self._window_steps == 0:
@@ -162,11 +146,13 @@ class MarineEnv(Env):
     # --- Brax Env interface -------------------------------------------------------------
     @property
     def action_size(self) -> int:
-        return self._action_size
+        return self.plant.action_size
 
     @functools.cached_property
-    def observation_size(self) -> int:
-        return int(jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs.shape[-1])
+    def observation_size(self) -> int | dict[str, tuple[int, ...]]:
+        """Size of the observation; with privileged_observation, the shape of each key (as Brax)."""
+        obs = jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs
+        return jax.tree.map(lambda x: x.shape, obs) if isinstance(obs, dict) else int(obs.shape[-1])
 
     @property
     def backend(self) -> str:
@@ -177,56 +163,40 @@ class MarineEnv(Env):
         """Control period, s."""
         return self.config.control_dt
 
-    def reset(self, rng: jax.Array) -> State:
-        cfg = self.config
-        rng, k_task, k_pose, k_cur, k_dyn, k_dist = jax.random.split(rng, 6)
+    def reset(self, rng: jax.Array, params: PlantParams | None = None) -> State:
+        """A new episode: target, start pose, current and (unless `params` is given) the physical
+        parameters drawn from `rng`."""
+        rng, k_task, k_pose, k_cur, k_params, _ = jax.random.split(rng, 6)
         task = self._sample_task(k_task)
-        current = sample_current(k_cur, cfg.current)
-        dynamics = sample_dynamics(k_dyn, self.sys, cfg.randomization) if cfg.randomization.enabled else nominal_dynamics(self.sys)
-        sys = apply_dynamics(self.sys, dynamics)
-        start = self._initial_pose(k_pose, task)
-        ps = to_physics(sys, start)
+        if params is None:
+            params = self.plant.sample_params(k_params)
+        ps = self.plant.init(k_cur, params, self._initial_pose(k_pose, task))
+        action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
             "rng": rng,
             "time": jnp.zeros(()),
             "task": task,
-            "current": current,
-            "dynamics": dynamics,
-            "last_action": jnp.zeros(self.action_size),
+            "params": params,
+            "last_action": action,
             "integral": jnp.zeros(4),
-            "disturbance": sample_disturbance(k_dist, cfg.disturbance),
         }
-        vs = from_physics(sys, ps)
-        obs, terms, errors = self._evaluate(vs, info, jnp.zeros(self.action_size))
-        obs = self._with_integral(obs, vs, info["integral"])
-        metrics = self._metrics(terms, errors, jnp.zeros(()), jnp.zeros(()))
+        vs = self.plant.vehicle_state(ps)
+        obs = self._observation(vs, info, action, ps)
+        metrics = self._metrics(self.reward_terms(vs, info, action), self.errors(vs, info), jnp.zeros(()), jnp.zeros(()))
         metrics["window_error"] = jnp.zeros(())
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
         cfg = self.config
-        if action.shape != (self.action_size,):
-            raise UserError(f"action must have shape ({self.action_size},) for this env ({cfg.action_mode} mode), got {action.shape}")
         info = dict(state.info)
+        rng, k_plant = jax.random.split(info["rng"])
+        ps, finite = self.plant.step(info["params"], state.pipeline_state, action, k_plant)
         action = jnp.clip(action, -1.0, 1.0)
-        rng, k_cur = jax.random.split(info["rng"])
-        current = step_current(info["current"], k_cur, cfg.control_dt, cfg.current)
-        sys = apply_dynamics(self.sys, info["dynamics"])
-        command = action if cfg.action_mode == "thrusters" else action * self._wrench_scale
-        external = None
-        if cfg.disturbance.enabled:
-            rot = quat_to_mat(from_physics(sys, state.pipeline_state).quaternion)
-            external = body_wrench(info["disturbance"], rot)
-        ps = control_step(sys, state.pipeline_state, command, current.value, cfg.substeps, cfg.action_mode,
-                          cfg.integrator, external)
-        finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
-        # Never propagate a non-finite state: keep the last finite one and end the episode.
-        ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.pipeline_state)
-        info.update(rng=rng, time=info["time"] + cfg.control_dt, current=current)
-        vs = from_physics(sys, ps)
+        info.update(rng=rng, time=info["time"] + cfg.control_dt)
+        vs = self.plant.vehicle_state(ps)
         info["integral"] = self._integrate_error(info["integral"], vs, info)
-        obs, terms, errors = self._evaluate(vs, info, action)
-        obs = self._with_integral(obs, vs, info["integral"])
+        obs = self._observation(vs, info, action, ps)
+        terms, errors = self.reward_terms(vs, info, action), self.errors(vs, info)
         info["last_action"] = action
         out = errors["position_error"] > cfg.max_distance
         nonfinite = 1.0 - finite.astype(jnp.float32)
@@ -238,9 +208,26 @@ class MarineEnv(Env):
         # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
         metrics = dict(state.metrics)
         metrics.update({k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in new.items()})
-        return state.replace(pipeline_state=ps, obs=jnp.where(finite, obs, 0.0), reward=reward, done=done, metrics=metrics, info=info)
+        obs = jax.tree.map(lambda o: jnp.where(finite, o, 0.0), obs)
+        return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
 
-    # --- helpers ------------------------------------------------------------------------
+    # --- errors, observation and reward pieces shared by the tasks -------------------------
+    def errors(self, vs: VehicleState, info: dict) -> dict[str, jnp.ndarray]:
+        """position_error (m, to `target_position`) and heading_error_deg (to the task's yaw)."""
+        return {
+            "heading_error_deg": jnp.degrees(jnp.abs(heading_error(vs.quaternion, info["task"].yaw))),
+            "position_error": jnp.linalg.norm(self.target_position(info) - vs.position),
+        }
+
+    def _observation(self, vs: VehicleState, info: dict, action: jnp.ndarray, ps: PlantState):
+        obs = self.observe(vs, info, action)
+        if self.config.integral_time_constant > 0:
+            integral = info["integral"]
+            obs = jnp.concatenate([obs, quat_to_mat(vs.quaternion).T @ integral[:3], integral[3:]])
+        if not self.config.privileged_observation:
+            return obs
+        return {"state": obs, "privileged_state": jnp.concatenate([obs, self.plant.privileged(info["params"], ps)])}
+
     def _integrate_error(self, integral: jnp.ndarray, vs: VehicleState, info: dict) -> jnp.ndarray:
         """Leaky, clipped integral (4,) of [world position error (m), heading error (rad)] (module docstring)."""
         c = self.config
@@ -253,12 +240,6 @@ class MarineEnv(Env):
         leak = math.exp(-c.control_dt / c.integral_time_constant)
         return leak * integral + c.control_dt * jnp.clip(error, -c.integral_error_clip, c.integral_error_clip)
 
-    def _with_integral(self, obs: jnp.ndarray, vs: VehicleState, integral: jnp.ndarray) -> jnp.ndarray:
-        """obs with the integral appended: position part in the body frame (m s), heading part (rad s)."""
-        if self.config.integral_time_constant == 0:
-            return obs
-        return jnp.concatenate([obs, quat_to_mat(vs.quaternion).T @ integral[:3], integral[3:]])
-
     def _metrics(self, terms, errors, nonfinite, out) -> dict[str, jnp.ndarray]:
         weights = self.config.reward
         metrics = {f"reward/{k}": getattr(weights, k) * v for k, v in terms.items()}
@@ -267,21 +248,24 @@ class MarineEnv(Env):
         metrics["out_of_bounds"] = out
         return metrics
 
-    def _common_terms(self, vs: VehicleState, target_yaw, action, last_action) -> tuple[dict, dict, jnp.ndarray]:
-        """Attitude, effort and smoothness terms; heading error; body-frame attitude observation."""
-        rot = quat_to_mat(vs.quaternion)
-        up_body = rot[2, :]  # world up in the body frame: roll and pitch
+    def _attitude_observation(self, vs: VehicleState, target_yaw) -> jnp.ndarray:
+        """World up in the body frame (3), sin and cos of the heading error (2), body linear (m/s) and
+        angular (rad/s) velocity (3 + 3)."""
+        up_body = quat_to_mat(vs.quaternion)[2, :]
         dpsi = heading_error(vs.quaternion, target_yaw)
-        terms = {
+        return jnp.concatenate([up_body, jnp.stack([jnp.sin(dpsi), jnp.cos(dpsi)]), vs.velocity, vs.angular_velocity])
+
+    def _attitude_terms(self, vs: VehicleState, target_yaw, action, last_action) -> dict[str, jnp.ndarray]:
+        """Unweighted upright, heading, effort, smoothness and angular-velocity reward terms."""
+        up_body = quat_to_mat(vs.quaternion)[2, :]  # world up in the body frame: roll and pitch
+        dpsi = heading_error(vs.quaternion, target_yaw)
+        return {
             "upright": ((up_body[2] + 1.0) / 2.0) ** 2,
             "heading": (1.0 + jnp.cos(dpsi)) / 2.0,
             "effort": -jnp.mean(action**2),
             "smoothness": -jnp.mean((action - last_action) ** 2),
             "angular_velocity": -jnp.sum(vs.angular_velocity**2),
         }
-        errors = {"heading_error_deg": jnp.degrees(jnp.abs(dpsi))}
-        attitude_obs = jnp.concatenate([up_body, jnp.stack([jnp.sin(dpsi), jnp.cos(dpsi)]), vs.velocity, vs.angular_velocity])
-        return terms, errors, attitude_obs
 
     def _random_start(self, rng: jax.Array, position: jnp.ndarray, yaw: jnp.ndarray) -> VehicleState:
         """A start state around `position` (m, world) and heading `yaw` (rad), per config.reset."""
@@ -309,12 +293,16 @@ class MarineEnv(Env):
         raise NotImplementedError
 
     def _sample_task(self, rng: jax.Array) -> Any:
+        """The episode's task (a pytree with at least `yaw`, the heading to hold, rad)."""
         raise NotImplementedError
 
     def _initial_pose(self, rng: jax.Array, task: Any) -> VehicleState:
         raise NotImplementedError
 
-    def _evaluate(self, vs: VehicleState, info: dict, action: jnp.ndarray):
-        """(observation, unweighted reward terms, error metrics) at the state `vs` (time info['time'])."""
+    def observe(self, vs: VehicleState, info: dict, action: jnp.ndarray) -> jnp.ndarray:
+        """The task's observation (before the integral) at state `vs`, time info['time'], after `action`."""
         raise NotImplementedError
 
+    def reward_terms(self, vs: VehicleState, info: dict, action: jnp.ndarray) -> dict[str, jnp.ndarray]:
+        """Unweighted reward terms, named as the fields of `RewardConfig` that weigh them."""
+        raise NotImplementedError

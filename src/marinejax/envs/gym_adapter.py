@@ -70,7 +70,7 @@ from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
 from marinejax.envs.base import MarineEnv
-from marinejax.envs.config import UnknownConfigKey
+from marinejax.config import UnknownConfigKey
 from marinejax.envs.registry import list_envs, make
 from marinejax.envs.wrappers import where_done
 from marinejax.errors import UserError
@@ -216,6 +216,18 @@ def _kernels(env_name: str, overrides: dict[str, Any]) -> _Kernels:
     return _cached_kernels(env_name, env.config)
 
 
+def _observation_space(size) -> spaces.Space:
+    """A Box of the env's observation size, or a Dict of Boxes for a dict observation."""
+    if isinstance(size, dict):
+        return spaces.Dict({k: spaces.Box(-np.inf, np.inf, tuple(shape), np.float32) for k, shape in size.items()})
+    return spaces.Box(-np.inf, np.inf, (size,), np.float32)
+
+
+def _np_obs(obs):
+    """An observation (array or dict of arrays) as float32 numpy."""
+    return {k: np.array(v, dtype=np.float32) for k, v in obs.items()} if isinstance(obs, dict) else np.array(obs, dtype=np.float32)
+
+
 def _check_render_mode(render_mode: str | None) -> None:
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise UserError(f"render_mode={render_mode!r} is not supported; valid: None, {', '.join(map(repr, RENDER_MODES))}")
@@ -230,13 +242,16 @@ class _Frames:
         self.kernels, self.width, self.height = kernels, int(width), int(height)
         self.renderer = None
 
-    def __call__(self, qpos: np.ndarray, info: dict) -> np.ndarray:
+    def __call__(self, plant_state, info: dict) -> np.ndarray:
+        """The frame of one env's (unbatched) plant state and info."""
         if self.renderer is None:
             from marinejax.render import FrameRenderer
 
-            self.renderer = FrameRenderer(self.kernels.env.vehicle.path, self.width, self.height)
+            vehicle = self.kernels.env.vehicle
+            self.renderer = FrameRenderer(vehicle.path, self.width, self.height, vehicle.sys.qpos_adr)
+        vs = self.kernels.env.plant.vehicle_state(plant_state)
         target = np.asarray(self.kernels.target(info))
-        return self.renderer.frame(np.asarray(qpos)[:7], target)
+        return self.renderer.frame(np.asarray(vs.position), np.asarray(vs.quaternion), target)
 
     def close(self) -> None:
         if self.renderer is not None:
@@ -274,7 +289,7 @@ class MarineJaxEnv(gymnasium.Env):
         self.render_mode = render_mode
         self._frames = _Frames(self._kernels, render_width, render_height)
         self.metadata = {"render_modes": RENDER_MODES, "render_fps": int(round(1.0 / cfg.control_dt))}
-        self.observation_space = spaces.Box(-np.inf, np.inf, (self.marine_env.observation_size,), np.float32)
+        self.observation_space = _observation_space(self.marine_env.observation_size)
         self.action_space = spaces.Box(-1.0, 1.0, (self.marine_env.action_size,), np.float32)
         self._state: State | None = None
         self._elapsed_steps = 0
@@ -292,7 +307,7 @@ class MarineJaxEnv(gymnasium.Env):
         self._state = self._kernels.reset(_seed_keys([seed])[0])
         self._elapsed_steps = 0
         obs, metrics = jax.device_get((self._state.obs, self._state.metrics))
-        return np.array(obs, dtype=np.float32), {k: float(v) for k, v in metrics.items()}
+        return _np_obs(obs), {k: float(v) for k, v in metrics.items()}
 
     def step(self, action):
         if self._state is None:
@@ -305,7 +320,7 @@ class MarineJaxEnv(gymnasium.Env):
         terminated = bool(done > 0)
         truncated = self._elapsed_steps >= self.episode_length and not terminated
         info = {k: float(v) for k, v in metrics.items()}
-        return np.array(obs, dtype=np.float32), float(reward), terminated, truncated, info
+        return _np_obs(obs), float(reward), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         """With render_mode="rgb_array": the current frame, (render_height, render_width, 3) uint8."""
@@ -313,7 +328,7 @@ class MarineJaxEnv(gymnasium.Env):
             return None
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before render()")
-        return self._frames(self._state.pipeline_state.data.qpos, self._state.info)
+        return self._frames(self._state.pipeline_state, self._state.info)
 
     def close(self) -> None:
         self._frames.close()
@@ -357,7 +372,7 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             "render_fps": int(round(1.0 / cfg.control_dt)),
             "autoreset_mode": self.autoreset_mode,
         }
-        self.single_observation_space = spaces.Box(-np.inf, np.inf, (self.marine_env.observation_size,), np.float32)
+        self.single_observation_space = _observation_space(self.marine_env.observation_size)
         self.single_action_space = spaces.Box(-1.0, 1.0, (self.marine_env.action_size,), np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -400,7 +415,7 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             carry = self._kernels.vmerge(jnp.asarray(mask), carry, self._carry)
         self._carry = carry
         obs, metrics = jax.device_get((carry.state.obs, carry.state.metrics))
-        return np.array(obs, dtype=np.float32), self._infos(metrics, mask)
+        return _np_obs(obs), self._infos(metrics, mask)
 
     def step(self, actions):
         if self._carry is None:
@@ -416,12 +431,12 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             infos = self._infos(metrics, None)
             if ended.any():
                 ended = np.array(ended, dtype=np.bool_)
-                infos["final_obs"] = np.array(final_obs, dtype=np.float32)
+                infos["final_obs"] = _np_obs(final_obs)
                 infos["_final_obs"] = ended
                 infos["final_info"] = self._infos(final_metrics, ended)
                 infos["_final_info"] = ended.copy()
         return (
-            np.array(obs, dtype=np.float32),
+            _np_obs(obs),
             np.array(reward, dtype=np.float64),
             np.array(terminated, dtype=np.bool_),
             np.array(truncated, dtype=np.bool_),
@@ -441,8 +456,8 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             return None
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before render()")
-        qpos, info = jax.device_get((self._carry.state.pipeline_state.data.qpos, self._carry.state.info))
-        return tuple(self._frames(qpos[i], jax.tree.map(lambda x, i=i: x[i], info)) for i in range(self.num_envs))
+        plant, info = jax.device_get((self._carry.state.pipeline_state, self._carry.state.info))
+        return tuple(self._frames(*jax.tree.map(lambda x, i=i: x[i], (plant, info))) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         self._frames.close()

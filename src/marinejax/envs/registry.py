@@ -19,7 +19,7 @@ import functools
 from typing import Any, Callable
 
 from marinejax.envs.base import EnvConfig, MarineEnv
-from marinejax.envs.config import apply_overrides
+from marinejax.config import apply_overrides
 from marinejax.errors import UserError
 from marinejax.vehicle import env_name_prefix, list_vehicles
 

@@ -63,18 +63,17 @@ class StationKeeping(MarineEnv):
     def _initial_pose(self, rng, task: StationTarget) -> VehicleState:
         return self._random_start(rng, task.position, task.yaw)
 
-    def _evaluate(self, vs: VehicleState, info, action):
+    def observe(self, vs: VehicleState, info, action):
         task: StationTarget = info["task"]
         rot = quat_to_mat(vs.quaternion)
-        err_world = task.position - vs.position
-        d = jnp.linalg.norm(err_world)
-        terms, errors, attitude = self._common_terms(vs, task.yaw, action, info["last_action"])
+        return jnp.concatenate([rot.T @ (task.position - vs.position), self._attitude_observation(vs, task.yaw), action])
+
+    def reward_terms(self, vs: VehicleState, info, action):
+        task: StationTarget = info["task"]
+        d = jnp.linalg.norm(task.position - vs.position)
         r = self.config.reward
-        terms = {
+        return {
             "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
             "precision": jnp.exp(-d / r.precision_scale),
-            **terms,
+            **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
         }
-        errors["position_error"] = d
-        obs = jnp.concatenate([rot.T @ err_world, attitude, action])
-        return obs, terms, errors

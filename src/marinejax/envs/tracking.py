@@ -81,17 +81,21 @@ class Tracking(MarineEnv):
         start, _ = reference(self.kind, task.trajectory, jnp.zeros(()))
         return self._random_start(rng, start, task.yaw)
 
-    def _evaluate(self, vs: VehicleState, info, action):
+    def observe(self, vs: VehicleState, info, action):
         task: TrackingTask = info["task"]
         c = self.config
         times = info["time"] + c.reference_spacing * jnp.arange(c.num_reference_points)
         ref_pos, ref_vel = reference(self.kind, task.trajectory, times)
         rot = quat_to_mat(vs.quaternion)
-        err_world = ref_pos - vs.position  # (m, 3)
-        d = jnp.linalg.norm(err_world[0])
-        terms, errors, attitude = self._common_terms(vs, task.yaw, action, info["last_action"])
-        r = c.reward
-        terms = {"position": jnp.exp(-d / r.position_scale), "precision": jnp.exp(-d / r.precision_scale), **terms}
-        errors["position_error"] = d
-        obs = jnp.concatenate([(err_world @ rot).reshape(-1), rot.T @ ref_vel[0], attitude, action])
-        return obs, terms, errors
+        ahead = ((ref_pos - vs.position) @ rot).reshape(-1)  # (m, 3) body-frame offsets to the reference points
+        return jnp.concatenate([ahead, rot.T @ ref_vel[0], self._attitude_observation(vs, task.yaw), action])
+
+    def reward_terms(self, vs: VehicleState, info, action):
+        task: TrackingTask = info["task"]
+        d = jnp.linalg.norm(self.target_position(info) - vs.position)
+        r = self.config.reward
+        return {
+            "position": jnp.exp(-d / r.position_scale),
+            "precision": jnp.exp(-d / r.precision_scale),
+            **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
+        }

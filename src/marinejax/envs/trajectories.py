@@ -36,7 +36,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.envs.config import check_range
+from marinejax.config import check_range
 from marinejax.errors import UserError
 
 KINDS = ("circle", "helix", "lemniscate")

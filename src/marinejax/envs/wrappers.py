@@ -12,7 +12,9 @@ from typing import Callable, Optional
 import jax
 import jax.numpy as jnp
 from brax.envs.base import Env, State, Wrapper
-from brax.envs.wrappers.training import DomainRandomizationVmapWrapper, EpisodeWrapper, VmapWrapper
+from brax.envs.wrappers.training import EpisodeWrapper, VmapWrapper
+
+from marinejax.errors import UserError
 
 # Keys of State.info that describe the transition that just happened, kept through a reset.
 _TRANSITION_KEYS = ("truncation", "steps")
@@ -65,7 +67,13 @@ def wrap_for_training(
     randomization_fn: Optional[Callable] = None,
 ) -> Wrapper:
     """Same signature as `brax.envs.training.wrap`, with `FullResetWrapper` instead of AutoReset:
-    pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`."""
-    env = VmapWrapper(env) if randomization_fn is None else DomainRandomizationVmapWrapper(env, randomization_fn)
+    pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`. Randomization is per episode, drawn by
+    the env's plant (`randomization.enabled`), so Brax's per-slot `randomization_fn` is refused."""
+    if randomization_fn is not None:
+        raise UserError(
+            "marinejax envs randomize their physics per episode: make the env with "
+            "randomization={'enabled': True} instead of passing a Brax randomization_fn"
+        )
+    env = VmapWrapper(env)
     env = EpisodeWrapper(env, episode_length, action_repeat)
     return FullResetWrapper(env)

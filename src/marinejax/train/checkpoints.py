@@ -91,14 +91,14 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: 
                 absl.setLevel(level)
     except Exception as err:  # orbax raises many kinds of errors on damaged files
         raise CheckpointError(f"checkpoint {ckpt} could not be read: {type(err).__name__}: {err}") from None
-    if net_config.get("observation_size") != env.observation_size or net_config.get("action_size") != env.action_size:
+    if net_config.get("observation_size") != json.loads(json.dumps(env.observation_size)) or net_config.get("action_size") != env.action_size:
         raise CheckpointError(
             f"checkpoint {ckpt} expects observations of size {net_config.get('observation_size')} and actions of size "
             f"{net_config.get('action_size')}; env {config.env} has {env.observation_size} and {env.action_size}"
         )
     # Brax 0.14's checkpoint.load_policy cannot rebuild networks it saved itself; build it as ppo.train does.
     normalize = running_statistics.normalize if config.ppo.normalize_observations else types.identity_observation_preprocessor
-    network = network_factory(config.ppo)(env.observation_size, env.action_size, preprocess_observations_fn=normalize)
+    network = network_factory(config.ppo, env.observation_size)(env.observation_size, env.action_size, preprocess_observations_fn=normalize)
     inference = ppo_networks.make_inference_fn(network)(params, deterministic=True)
     return config, env, (lambda obs: inference(obs, jax.random.PRNGKey(0))[0]), ckpt
 

@@ -39,7 +39,8 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
 
         model = env.vehicle.path
         try:
-            summary["video"] = str(render_video(model, result["qpos"][0], result["target"][0], 1.0 / env.config.control_dt, out_dir / "episode0"))
+            summary["video"] = str(render_video(model, result["position"][0], result["quaternion"][0], result["target"][0],
+                                                1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr))
         except RuntimeError as err:
             summary["video_error"] = str(err)
     (out_dir / "eval.json").write_text(json.dumps(summary, indent=2))

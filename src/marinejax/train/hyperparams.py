@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping
 
-from marinejax.envs.config import apply_overrides
+from marinejax.config import apply_overrides
 from marinejax.envs.registry import env_spec
 from marinejax.errors import UserError
 

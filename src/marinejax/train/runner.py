@@ -16,15 +16,14 @@ import functools
 import json
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import jax
 import numpy as np
 
+from marinejax.config import to_dict
 from marinejax.envs import make, wrap_for_training
 from marinejax.envs.base import MarineEnv
-from marinejax.envs.config import to_dict
-from marinejax.envs.randomization import brax_randomization_fn
 from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
@@ -37,14 +36,18 @@ class _TargetReached(Exception):
     """Raised from the progress callback to end ppo.train once the target error is met."""
 
 
-def network_factory(ppo: PPOConfig) -> Callable:
+def network_factory(ppo: PPOConfig, observation_size) -> Callable:
+    """Brax's PPO networks with our sizes; for a dict observation (`privileged_observation`) the
+    policy reads "state" and the critic "privileged_state"."""
     from brax.training.agents.ppo import networks as ppo_networks
 
+    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
     return functools.partial(
         ppo_networks.make_ppo_networks,
         policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
         value_hidden_layer_sizes=tuple(ppo.value_hidden),
         init_noise_std=ppo.init_noise_std,
+        **keys,
     )
 
 
@@ -103,7 +106,6 @@ def train(
     run_dir: Path,
     resume: bool = False,
     on_eval: Callable[[dict[str, float]], None] | None = None,
-    randomize: bool = False,
     target_error: float | None = None,
     stop_at_target: bool = True,
     devices: int | None = None,
@@ -147,7 +149,7 @@ def train(
     if remaining <= 0:
         return json.loads((run_dir / "summary.json").read_text()) if (run_dir / "summary.json").exists() else {}
 
-    factory = network_factory(ppo)
+    factory = network_factory(ppo, env.observation_size)
     net_config = ppo_checkpoint.network_config(
         observation_size=env.observation_size,
         action_size=env.action_size,
@@ -183,7 +185,6 @@ def train(
         if step > 0:
             ppo_checkpoint.save(run_dir / CHECKPOINTS, steps_done + int(step), params, net_config)
 
-    randomization = brax_randomization_fn(env.config.randomization) if randomize else None
     status = "finished"
     try:
         ppo_train.train(
@@ -191,7 +192,6 @@ def train(
             num_timesteps=remaining,
             episode_length=env.config.episode_length,
             wrap_env_fn=wrap_for_training,
-            randomization_fn=randomization,
             num_envs=ppo.num_envs,
             unroll_length=ppo.unroll_length,
             batch_size=ppo.batch_size,

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.envs.config import check_range
+from marinejax.config import check_range
 from marinejax.errors import UserError
 
 CURRENT_MODES = ("off", "constant", "ou")

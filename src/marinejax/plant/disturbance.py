@@ -1,11 +1,11 @@
 """A constant external force and torque per episode: what a tether, a payload or a mis-trimmed
 vehicle does to a controller that has no integral action.
 
-Drawn at reset when `disturbance.enabled`: a world-frame force with magnitude uniform in `force`
+Drawn per episode (`Plant.sample_params`, into `PlantParams.disturbance`) when `disturbance.enabled`: a world-frame force with magnitude uniform in `force`
 (N) and a uniformly random direction in 3-D, and a body-frame torque about the centre of gravity
 with magnitude uniform in `torque` (N m) and a uniformly random axis. Both stay constant over the
-episode. The env converts the force into the body frame at the start of every control step and
-hands the body wrench to the physics with the thrust.
+episode. `Plant.step` converts the force into the body frame at the start of every control step
+and hands the body wrench to the physics with the thrust.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 
-from marinejax.envs.config import check_range
+from marinejax.config import check_range
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,0 +1,142 @@
+"""The plant: one vehicle, its integrator and its per-episode physics, as pure functions.
+
+    plant = Plant("bluerov2_heavy", PlantConfig())
+    params = plant.sample_params(key)                 # PlantParams of one episode (explicit pytree)
+    state = plant.init(key, params, start)            # PlantState: MJX data, thruster lag, current
+    state, finite = plant.step(params, state, action, key)
+    vs = plant.vehicle_state(state)                   # exact VehicleState (world pose, body velocities)
+
+Everything an env, a controller, an identification routine or an export needs from the physics
+goes through this layer; envs add tasks (targets, observations, rewards) on top.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from marinejax.errors import UserError
+from marinejax.frames import quat_to_mat
+from marinejax.physics import (
+    COMMAND_MODES,
+    PhysicsState,
+    VehicleState,
+    check_integrator,
+    control_step,
+    from_physics,
+    to_physics,
+    with_timestep,
+)
+from marinejax.plant.current import CurrentConfig, CurrentState, sample_current, step_current
+from marinejax.plant.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
+from marinejax.plant.params import PlantParams, apply_params, nominal_params
+from marinejax.plant.randomization import RandomizationConfig, sample_dynamics
+from marinejax.vehicle import Vehicle, load_vehicle
+
+
+@dataclasses.dataclass(frozen=True)
+class PlantConfig:
+    """How a vehicle is simulated and what varies per episode. Times in s."""
+
+    param_set: str | None = None  # vehicle parameter set (None: the vehicle's default)
+    control_dt: float = 0.05  # s per action (20 Hz)
+    substeps: int = 1  # physics steps per action (50 ms with the second-order midpoint integrator)
+    integrator: str = "midpoint"  # "midpoint" (second order) or "euler" (first order, needs <= 0.02 s steps)
+    action_mode: str = "thrusters"  # thrusters: throttles in [−1, 1]; wrench: body wrench / wrench_scale
+    wrench_scale: tuple[float, float, float, float, float, float] = (80.0, 80.0, 100.0, 15.0, 15.0, 15.0)  # N, N m
+    current: CurrentConfig = CurrentConfig()
+    randomization: RandomizationConfig = RandomizationConfig()
+    disturbance: DisturbanceConfig = DisturbanceConfig()
+
+    def __post_init__(self):
+        if self.action_mode not in COMMAND_MODES:
+            raise UserError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
+        if not self.control_dt > 0:
+            raise UserError(f"config 'control_dt' must be > 0, got {self.control_dt}")
+        if self.substeps < 1:
+            raise UserError(f"config 'substeps' must be >= 1, got {self.substeps}")
+        check_integrator(self.integrator, self.control_dt / self.substeps)
+        if any(s <= 0 for s in self.wrench_scale):
+            raise UserError(f"config 'wrench_scale' must be positive, got {self.wrench_scale}")
+
+
+@struct.dataclass
+class PlantState:
+    """What the plant carries between control steps."""
+
+    physics: PhysicsState  # MJX data (free joint of the vehicle) and the lagged thruster forces
+    current: CurrentState  # ocean current, world frame, m/s
+
+
+class Plant:
+    """A vehicle simulated at `config.control_dt` per action. Names, sizes and the MJX model are
+    resolved here, once; every method is pure and jit/vmap-able."""
+
+    def __init__(self, vehicle: str | Vehicle, config: PlantConfig = PlantConfig()):
+        self.config = config
+        self.vehicle = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle, param_set=config.param_set)
+        self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
+        self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
+        self.action_size = self.vehicle.num_thrusters if config.action_mode == "thrusters" else 6
+        self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+
+    def nominal_params(self) -> PlantParams:
+        """The vehicle's parameters as loaded, no disturbance."""
+        return nominal_params(self.sys)
+
+    def sample_params(self, rng: jax.Array) -> PlantParams:
+        """One episode's parameters: randomized when `randomization.enabled`, with a disturbance
+        drawn when `disturbance.enabled` (else the nominal parameters and no disturbance)."""
+        k_dyn, k_dist = jax.random.split(rng)
+        cfg = self.config
+        params = self.nominal_params()
+        if cfg.randomization.enabled:
+            params = sample_dynamics(k_dyn, params, self.gravity, cfg.randomization)
+        return params.replace(disturbance=sample_disturbance(k_dist, cfg.disturbance))
+
+    def init(self, rng: jax.Array, params: PlantParams, start: VehicleState) -> PlantState:
+        """The plant at `start` (world pose, body velocities, thrust), with this episode's current."""
+        physics = to_physics(apply_params(self.sys, params), start)
+        return PlantState(physics=physics, current=sample_current(rng, self.config.current))
+
+    def step(self, params: PlantParams, state: PlantState, action: jax.Array, rng: jax.Array) -> tuple[PlantState, jax.Array]:
+        """One control step under `action` (clipped to [−1, 1]: throttles, or the body wrench divided
+        by `wrench_scale`). Returns (new state, finite): a non-finite result is never propagated,
+        the last finite physics state is kept and `finite` is False."""
+        cfg = self.config
+        if action.shape != (self.action_size,):
+            raise UserError(f"action must have shape ({self.action_size},) ({cfg.action_mode} mode), got {action.shape}")
+        action = jnp.clip(action, -1.0, 1.0)
+        current = step_current(state.current, rng, cfg.control_dt, cfg.current)
+        sys = apply_params(self.sys, params)
+        command = action if cfg.action_mode == "thrusters" else action * self._wrench_scale
+        external = None
+        if cfg.disturbance.enabled:
+            external = body_wrench(params.disturbance, quat_to_mat(self.vehicle_state(state).quaternion))
+        ps = control_step(sys, state.physics, command, current.value, cfg.substeps, cfg.action_mode, cfg.integrator, external)
+        finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
+        ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.physics)
+        return PlantState(physics=ps, current=current), finite
+
+    def vehicle_state(self, state: PlantState) -> VehicleState:
+        """The exact kinematic state: world position and quaternion, body-frame velocities, thrust."""
+        return from_physics(self.sys, state.physics)
+
+    def privileged(self, params: PlantParams, state: PlantState) -> jnp.ndarray:
+        """What a real vehicle cannot measure, as one vector for a critic (body frame FLU):
+        current (3, m/s), disturbance force (3, N) and torque (3, N m), mass (kg), net buoyancy (N),
+        inertia (3), added mass (6), linear and quadratic damping (6 + 6), centre of buoyancy (3, m),
+        thruster gains (N), thruster time constant (s), supply voltage (V)."""
+        rot = quat_to_mat(self.vehicle_state(state).quaternion)
+        h = params.hydro
+        return jnp.concatenate([
+            rot.T @ state.current.value,
+            body_wrench(params.disturbance, rot),
+            params.mass[None], params.net_buoyancy(self.gravity)[None], params.inertia,
+            h.added_mass, h.linear_damping, h.quadratic_damping, h.center_of_buoyancy,
+            params.thruster_gain, params.time_constant[None], params.voltage[None],
+        ])
+

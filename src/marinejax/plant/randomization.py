@@ -1,0 +1,76 @@
+"""Domain randomization: the ranges of the physical parameters and the draw of one episode's set.
+
+`sample_dynamics` perturbs every physical field of `PlantParams` (`plant.params`) within the
+configured ranges; `Plant.sample_params` calls it at each episode when `randomization.enabled`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from marinejax.config import check_range
+from marinejax.errors import UserError
+from marinejax.plant.params import PlantParams
+from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE
+
+
+@dataclasses.dataclass(frozen=True)
+class RandomizationConfig:
+    """Ranges, drawn uniformly. 'scale' ranges multiply the nominal value (per axis / thruster)."""
+
+    enabled: bool = False
+    mass_scale: tuple[float, float] = (0.9, 1.1)
+    inertia_scale: tuple[float, float] = (0.8, 1.2)
+    net_buoyancy: tuple[float, float] = (-1.5, 1.5)  # N added to buoyancy through the displaced volume
+    cob_offset: float = 0.005  # m, each axis of the centre of buoyancy moves by up to ± this
+    added_mass_scale: tuple[float, float] = (0.8, 1.2)
+    damping_scale: tuple[float, float] = (0.8, 1.2)  # linear and quadratic, per axis
+    thruster_gain: tuple[float, float] = (0.9, 1.1)  # per thruster
+    thruster_time_constant: tuple[float, float] = (0.03, 0.1)  # s
+    voltage: tuple[float, float] = (14.0, 16.8)  # V, supply (a 4S battery from flat to full)
+
+    def __post_init__(self):
+        for name in ("mass_scale", "inertia_scale", "added_mass_scale", "damping_scale", "thruster_gain"):
+            check_range(f"randomization.{name}", getattr(self, name), low=1e-3)
+        check_range("randomization.net_buoyancy", self.net_buoyancy)
+        check_range("randomization.thruster_time_constant", self.thruster_time_constant, low=0.0)
+        check_range("randomization.voltage", self.voltage, low=SUPPLY_VOLTAGE_RANGE[0])
+        if self.voltage[1] > SUPPLY_VOLTAGE_RANGE[1]:
+            raise UserError(f"config 'randomization.voltage' must lie in {SUPPLY_VOLTAGE_RANGE} V, got {self.voltage}")
+        if not 0 <= self.cob_offset < 0.1:
+            raise UserError(f"config 'randomization.cob_offset' must be in [0, 0.1) m, got {self.cob_offset}")
+
+
+def sample_dynamics(rng: jax.Array, nom: PlantParams, gravity: float, config: RandomizationConfig) -> PlantParams:
+    """`nom` with its physical parameters perturbed within the configured ranges (gravity in m/s^2;
+    the disturbance is left as it is)."""
+    keys = iter(jax.random.split(rng, 10))
+
+    def u(rng_range, shape=()):
+        lo, hi = rng_range
+        return jax.random.uniform(next(keys), shape, minval=lo, maxval=hi)
+
+    h = nom.hydro
+    g = gravity
+    mass = nom.mass * u(config.mass_scale)
+    # the volume keeps the nominal net buoyancy with the new mass, then shifts it by net_buoyancy
+    volume = h.volume + ((mass - nom.mass) * g + u(config.net_buoyancy)) / (h.fluid_density * g)
+    damping = u(config.damping_scale, (6,))
+    hydro = h.replace(
+        added_mass=h.added_mass * u(config.added_mass_scale, (6,)),
+        linear_damping=h.linear_damping * damping,
+        quadratic_damping=h.quadratic_damping * damping,
+        volume=volume,
+        center_of_buoyancy=h.center_of_buoyancy + u((-config.cob_offset, config.cob_offset), (3,)),
+    )
+    return nom.replace(
+        mass=mass,
+        inertia=nom.inertia * u(config.inertia_scale, (3,)),
+        hydro=hydro,
+        thruster_gain=nom.thruster_gain * u(config.thruster_gain, nom.thruster_gain.shape),
+        time_constant=u(config.thruster_time_constant),
+        voltage=u(config.voltage),
+    )
