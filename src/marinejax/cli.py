@@ -185,6 +185,14 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    from marinejax.export import export_policy
+
+    path = export_policy(args.path, args.format, Path(args.out) if args.out else None, args.checkpoint)
+    print(f"wrote {path} ({args.format}); metadata inside: env, observation layout, action meaning, control rate")
+    return 0
+
+
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     if args.what == "physics":
         from marinejax.benchmarks.physics import main as bench_main
@@ -241,6 +249,13 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--dt", type=float, default=0.05,
                      help="physics step in seconds, midpoint integrator (default 0.05, the env default)")
 
+    ex = sub.add_parser("export", parents=[common], help="write a trained policy as ONNX or as NumPy weights (npz) for deployment")
+    ex.add_argument("path", help="run directory, checkpoint directory, or the env name of a shipped policy")
+    ex.add_argument("--format", choices=["onnx", "npz"], default="onnx",
+                    help="onnx (needs pip install 'marinejax[export]') or npz (marinejax.export.load_numpy_policy, NumPy only)")
+    ex.add_argument("--out", help="output file (default ./<env>-policy.<format>)")
+    ex.add_argument("--checkpoint", choices=["best", "latest"], default="best", help="for a run directory: which checkpoint")
+
     bench = sub.add_parser("bench", add_help=False, parents=[common],
                            help="benchmarks: `marinejax bench physics|envs|training|clients [flags]` (-h for their flags)")
     bench.add_argument("what", choices=["physics", "envs", "training", "clients"])
@@ -262,6 +277,8 @@ def main(argv: list[str] | None = None) -> int:
             return _eval(args)
         if args.command == "validate":
             return _validate(args)
+        if args.command == "export":
+            return _export(args)
         return _bench(args, rest)
     except UserError as err:  # anything else is a bug: let its traceback show
         print(f"marinejax {args.command}: error: {err}", file=sys.stderr)

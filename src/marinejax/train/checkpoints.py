@@ -61,14 +61,12 @@ def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Pat
     raise CheckpointError(f"{path} is neither a run directory (with config.json) nor a checkpoint inside one")
 
 
-def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
-    """(train config, env, deterministic policy fn obs -> action, checkpoint dir) from a run or checkpoint."""
-    from brax.training import types
-    from brax.training.acme import running_statistics
+def load_params(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
+    """(train config, env, Brax PPO params (normalizer, policy, value), checkpoint dir) from a run,
+    a checkpoint or a shipped policy's env name; checks the env's sizes against the checkpoint's."""
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
-    from brax.training.agents.ppo import networks as ppo_networks
 
-    from marinejax.train.runner import build_env, load_train_config, network_factory
+    from marinejax.train.runner import build_env, load_train_config
 
     run_dir, ckpt = resolve_checkpoint(path, which)
     try:
@@ -96,6 +94,18 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: 
             f"checkpoint {ckpt} expects observations of size {net_config.get('observation_size')} and actions of size "
             f"{net_config.get('action_size')}; env {config.env} has {env.observation_size} and {env.action_size}"
         )
+    return config, env, params, ckpt
+
+
+def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
+    """(train config, env, deterministic policy fn obs -> action, checkpoint dir) from a run or checkpoint."""
+    from brax.training import types
+    from brax.training.acme import running_statistics
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    from marinejax.train.runner import network_factory
+
+    config, env, params, ckpt = load_params(path, env_overrides, which)
     # Brax 0.14's checkpoint.load_policy cannot rebuild networks it saved itself; build it as ppo.train does.
     normalize = running_statistics.normalize if config.ppo.normalize_observations else types.identity_observation_preprocessor
     network = network_factory(config.ppo, env.observation_size)(env.observation_size, env.action_size, preprocess_observations_fn=normalize)

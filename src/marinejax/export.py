@@ -1,0 +1,155 @@
+"""Trained policies out of JAX, for the vehicle's computer: NumPy weights with a dependency-free
+inference function, or an ONNX model (for onnxruntime, TensorRT, ...).
+
+    marinejax export RUN_OR_ENV --format npz|onnx [--out PATH]
+
+    from marinejax.export import load_numpy_policy       # needs only NumPy
+    policy = load_numpy_policy("policy.npz")
+    action = policy(observation)                           # (obs,) or (B, obs) float -> (action,) or (B, action)
+
+The exported function is the deterministic PPO policy of the checkpoint: the observation
+normalized with the running statistics of training, (obs − mean) / std, an MLP with swish hidden
+layers, and tanh of the mean half of the last layer. Both files carry the same metadata (JSON in
+`metadata` of the npz, in the ONNX model's metadata_props): env, checkpoint, control period,
+observation size and layout (the task's docstring), observation mode, action size and meaning
+(thruster order), frames and units.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from marinejax.errors import UserError
+
+FORMATS = ("npz", "onnx")
+
+
+@dataclasses.dataclass(frozen=True)
+class PolicyWeights:
+    """A deterministic PPO policy as plain arrays (float32)."""
+
+    mean: np.ndarray  # (obs,) observation mean of training
+    std: np.ndarray  # (obs,) observation standard deviation of training
+    kernels: tuple[np.ndarray, ...]  # (in, out) per layer
+    biases: tuple[np.ndarray, ...]  # (out,) per layer
+    action_size: int
+    metadata: dict[str, Any]
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        """Action(s) in [−1, 1] for observation(s) (obs,) or (B, obs), NumPy only."""
+        x = (np.asarray(observation, dtype=np.float32) - self.mean) / self.std
+        for i, (w, b) in enumerate(zip(self.kernels, self.biases)):
+            x = x @ w + b
+            if i < len(self.kernels) - 1:
+                x = x / (1.0 + np.exp(-x))  # swish: x · sigmoid(x)
+        return np.tanh(x[..., : self.action_size])
+
+
+def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
+    """The policy of a run directory, checkpoint or shipped policy (env name), with its metadata."""
+    import jax
+
+    from marinejax.train.checkpoints import load_params
+
+    config, env, params, ckpt = load_params(Path(path) if Path(path).exists() else path, None, which)
+    if not isinstance(env.observation_size, int):
+        raise UserError(f"{config.env} was trained with a dict observation; export supports the flat 'state' observation only")
+    normalizer, policy = params[0], params[1]["params"]
+    layers = sorted(policy, key=lambda name: int(name.split("_")[-1]))
+    if not config.ppo.normalize_observations:
+        mean, std = np.zeros(env.observation_size, np.float32), np.ones(env.observation_size, np.float32)
+    else:
+        mean, std = np.asarray(normalizer.mean, np.float32), np.asarray(normalizer.std, np.float32)
+    c = env.config
+    action = (f"throttle per thruster in [-1, 1], order {list(env.vehicle.thruster_names)}" if c.action_mode == "thrusters"
+              else f"body wrench [Fx, Fy, Fz, Mx, My, Mz] divided by wrench_scale {list(c.wrench_scale)} (N, N m), in [-1, 1]")
+    metadata = {
+        "marinejax_version": __import__("marinejax").__version__,
+        "env": config.env,
+        "env_overrides": dict(config.env_overrides),
+        "checkpoint": str(ckpt),
+        "control_dt_s": c.control_dt,
+        "observation_size": int(env.observation_size),
+        "observation_mode": "state: the exact simulator state (no sensor model)",
+        "observation_layout": inspect.getdoc(inspect.getmodule(type(env))),
+        "action_size": int(env.action_size),
+        "action": action,
+        "frames": "world: x, y horizontal, z up; body: FLU (x forward, y left, z up); SI units",
+        "network": f"(obs - mean) / std -> dense {[int(np.shape(policy[n]['kernel'])[1]) for n in layers]} "
+                   "with swish between layers -> tanh of the first action_size outputs",
+    }
+    to_np = lambda x: np.asarray(jax.device_get(x), np.float32)  # noqa: E731
+    return PolicyWeights(mean=mean, std=std, kernels=tuple(to_np(policy[n]["kernel"]) for n in layers),
+                         biases=tuple(to_np(policy[n]["bias"]) for n in layers), action_size=int(env.action_size),
+                         metadata=metadata)
+
+
+def save_npz(weights: PolicyWeights, out: Path) -> Path:
+    arrays = {"mean": weights.mean, "std": weights.std, "action_size": np.int64(weights.action_size),
+              "metadata": np.array(json.dumps(weights.metadata))}
+    for i, (w, b) in enumerate(zip(weights.kernels, weights.biases)):
+        arrays[f"kernel_{i}"], arrays[f"bias_{i}"] = w, b
+    with open(out, "wb") as f:  # a file object: np.savez would append .npz to another suffix
+        np.savez(f, **arrays)
+    return out
+
+
+def load_numpy_policy(path: Path | str) -> PolicyWeights:
+    """The policy exported with `--format npz`, callable on observations (NumPy only)."""
+    with np.load(path, allow_pickle=False) as data:
+        n = sum(1 for k in data.files if k.startswith("kernel_"))
+        return PolicyWeights(mean=data["mean"], std=data["std"], kernels=tuple(data[f"kernel_{i}"] for i in range(n)),
+                             biases=tuple(data[f"bias_{i}"] for i in range(n)), action_size=int(data["action_size"]),
+                             metadata=json.loads(str(data["metadata"])))
+
+
+def save_onnx(weights: PolicyWeights, out: Path) -> Path:
+    """An ONNX model (opset 17): input "observation" (B, obs) float32, output "action" (B, action)."""
+    try:
+        import onnx
+        from onnx import TensorProto, helper, numpy_helper
+    except ImportError:
+        raise UserError("ONNX export needs the onnx package: pip install 'marinejax[export]'") from None
+    init = [numpy_helper.from_array(weights.mean, "mean"), numpy_helper.from_array(weights.std, "std"),
+            numpy_helper.from_array(np.array([0], np.int64), "start"),
+            numpy_helper.from_array(np.array([weights.action_size], np.int64), "end"),
+            numpy_helper.from_array(np.array([1], np.int64), "axis")]
+    nodes = [helper.make_node("Sub", ["observation", "mean"], ["centred"]), helper.make_node("Div", ["centred", "std"], ["x0"])]
+    x = "x0"
+    for i, (w, b) in enumerate(zip(weights.kernels, weights.biases)):
+        init += [numpy_helper.from_array(w, f"kernel_{i}"), numpy_helper.from_array(b, f"bias_{i}")]
+        nodes.append(helper.make_node("Gemm", [x, f"kernel_{i}", f"bias_{i}"], [f"dense_{i}"]))
+        x = f"dense_{i}"
+        if i < len(weights.kernels) - 1:
+            nodes += [helper.make_node("Sigmoid", [x], [f"sigmoid_{i}"]), helper.make_node("Mul", [x, f"sigmoid_{i}"], [f"swish_{i}"])]
+            x = f"swish_{i}"
+    nodes += [helper.make_node("Slice", [x, "start", "end", "axis"], ["loc"]), helper.make_node("Tanh", ["loc"], ["action"])]
+    obs_size = int(weights.mean.shape[0])
+    graph = helper.make_graph(
+        nodes, "marinejax_policy",
+        [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["batch", obs_size])],
+        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", weights.action_size])],
+        init,
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], producer_name="marinejax")
+    model.ir_version = 8  # readable by onnxruntime >= 1.14
+    helper.set_model_props(model, {"marinejax": json.dumps(weights.metadata)})
+    onnx.checker.check_model(model)
+    onnx.save(model, str(out))
+    return out
+
+
+def export_policy(path: Path | str, fmt: str = "onnx", out: Path | None = None, which: str = "best") -> Path:
+    """Write the policy of `path` (run directory, checkpoint or shipped env name) as `fmt`."""
+    if fmt not in FORMATS:
+        raise UserError(f"unknown export format {fmt!r}; valid: {list(FORMATS)}")
+    weights = policy_weights(path, which)
+    out = Path(out) if out else Path(f"{weights.metadata['env']}-policy.{fmt}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return save_npz(weights, out) if fmt == "npz" else save_onnx(weights, out)
