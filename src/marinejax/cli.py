@@ -57,12 +57,15 @@ def quiet_dependency_warnings() -> None:
 
 
 def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
-    """Parse KEY=VALUE strings; VALUE is a Python literal (number, bool, tuple, string) or a bare string."""
+    """Parse KEY=VALUE strings; VALUE is true/false, a Python literal (number, bool, tuple, string) or a bare string."""
     out = {}
     for item in items or []:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise UserError(f"{flag} expects KEY=VALUE, got {item!r}")
+        if raw.strip().lower() in ("true", "false"):
+            out[key.strip()] = raw.strip().lower() == "true"
+            continue
         try:
             value = ast.literal_eval(raw)
         except (ValueError, SyntaxError):

@@ -195,3 +195,10 @@ def test_training_on_two_virtual_cpu_devices_splits_the_batch_and_learns(tmp_pat
 def test_more_devices_than_there_are_is_a_user_error():
     proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--devices", "3", timeout=120)
     assert proc.returncode == 2 and "devices must be between 1 and the 1 local device(s)" in proc.stderr
+
+
+def test_key_values_take_json_style_booleans_and_python_literals():
+    from marinejax.cli import parse_key_values
+
+    values = parse_key_values(["a=true", "b=False", "c=0.5", "d=(1, 2)", "e=ou", "f=FALSE"], "--env")
+    assert values == {"a": True, "b": False, "c": 0.5, "d": (1, 2), "e": "ou", "f": False}
