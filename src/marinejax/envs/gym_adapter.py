@@ -69,8 +69,8 @@ from brax.envs.base import State
 from gymnasium import spaces
 from gymnasium.vector.utils import batch_space
 
-from marinejax.envs.base import MarineEnv
 from marinejax.config import UnknownConfigKey
+from marinejax.envs.base import MarineEnv
 from marinejax.envs.registry import list_envs, make
 from marinejax.envs.wrappers import where_done
 from marinejax.errors import UserError

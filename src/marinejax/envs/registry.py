@@ -18,8 +18,8 @@ import dataclasses
 import functools
 from typing import Any, Callable
 
-from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.config import apply_overrides
+from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.errors import UserError
 from marinejax.vehicle import env_name_prefix, list_vehicles
 
