@@ -36,9 +36,9 @@ class _TargetReached(Exception):
     """Raised from the progress callback to end ppo.train once the target error is met."""
 
 
-def network_factory(ppo: PPOConfig, observation_size) -> Callable:
-    """Brax's PPO networks with our sizes; for a dict observation (`privileged_observation`) the
-    policy reads "state" and the critic "privileged_state"."""
+def network_factory(ppo: PPOConfig, observation_size: int | Mapping | None = None) -> Callable:
+    """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
+    the policy reads "state" and the critic "privileged_state"."""
     from brax.training.agents.ppo import networks as ppo_networks
 
     keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
