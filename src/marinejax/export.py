@@ -57,7 +57,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
 
     from marinejax.train.checkpoints import load_params
 
-    config, env, params, ckpt = load_params(Path(path) if Path(path).exists() else path, None, which)
+    config, env, params, ckpt = load_params(path, None, which)
     if not isinstance(env.observation_size, int):
         raise UserError(f"{config.env} was trained with a dict observation; export supports the flat 'state' observation only")
     normalizer, policy = params[0], params[1]["params"]

@@ -149,6 +149,13 @@ class _Kernels:
         self.vstep_same = jax.jit(self._vstep_same)
         self.vmerge = jax.jit(where_done)
         self.target = jax.jit(env.target_position)
+        self.pose = jax.jit(self._pose)
+        self.vpose = jax.jit(jax.vmap(self._pose))
+
+    def _pose(self, plant_state) -> tuple[jax.Array, jax.Array]:
+        """World position (m) and quaternion of the vehicle: all a frame needs of the plant state."""
+        vs = self.env.plant.vehicle_state(plant_state)
+        return vs.position, vs.quaternion
 
     def _reset_where(self, mask: jax.Array, carry: _Carry, episode: jax.Array, state: State) -> State:
         """`state` with envs where `mask` replaced by fresh episodes (key fold_in(K_i, episode_i))."""
@@ -242,16 +249,15 @@ class _Frames:
         self.kernels, self.width, self.height = kernels, int(width), int(height)
         self.renderer = None
 
-    def __call__(self, plant_state, info: dict) -> np.ndarray:
-        """The frame of one env's (unbatched) plant state and info."""
+    def __call__(self, position: np.ndarray, quaternion: np.ndarray, info: dict) -> np.ndarray:
+        """The frame of one env's vehicle pose (world position m, quaternion) and info."""
         if self.renderer is None:
             from marinejax.render import FrameRenderer
 
             vehicle = self.kernels.env.vehicle
             self.renderer = FrameRenderer(vehicle.path, self.width, self.height, vehicle.sys.qpos_adr)
-        vs = self.kernels.env.plant.vehicle_state(plant_state)
         target = np.asarray(self.kernels.target(info))
-        return self.renderer.frame(np.asarray(vs.position), np.asarray(vs.quaternion), target)
+        return self.renderer.frame(position, quaternion, target)
 
     def close(self) -> None:
         if self.renderer is not None:
@@ -328,7 +334,8 @@ class MarineJaxEnv(gymnasium.Env):
             return None
         if self._state is None:
             raise gymnasium.error.ResetNeeded("call reset() before render()")
-        return self._frames(self._state.pipeline_state, self._state.info)
+        position, quaternion = jax.device_get(self._kernels.pose(self._state.pipeline_state))
+        return self._frames(position, quaternion, self._state.info)
 
     def close(self) -> None:
         self._frames.close()
@@ -456,8 +463,8 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
             return None
         if self._carry is None:
             raise gymnasium.error.ResetNeeded("call reset() before render()")
-        plant, info = jax.device_get((self._carry.state.pipeline_state, self._carry.state.info))
-        return tuple(self._frames(*jax.tree.map(lambda x, i=i: x[i], (plant, info))) for i in range(self.num_envs))
+        (position, quaternion), info = jax.device_get((self._kernels.vpose(self._carry.state.pipeline_state), self._carry.state.info))
+        return tuple(self._frames(position[i], quaternion[i], jax.tree.map(lambda x, i=i: x[i], info)) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         self._frames.close()

@@ -61,7 +61,7 @@ def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Pat
     raise CheckpointError(f"{path} is neither a run directory (with config.json) nor a checkpoint inside one")
 
 
-def load_params(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
+def load_params(path: Path | str, env_overrides: dict[str, Any] | None = None, which: str = "best"):
     """(train config, env, Brax PPO params (normalizer, policy, value), checkpoint dir) from a run,
     a checkpoint or a shipped policy's env name; checks the env's sizes against the checkpoint's."""
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
