@@ -51,6 +51,20 @@ class PolicyWeights:
         return np.tanh(x[..., : self.action_size])
 
 
+def _observation_mode(config) -> str | dict:
+    """What the policy was trained to observe: the exact state, or the sensor suite and its settings."""
+    if config.observation_mode == "state":
+        return "state: the exact simulator state (no sensor model)"
+    import dataclasses
+
+    return {
+        "mode": "sensors: the state estimated by marinejax.plant.estimator (complementary filter) from the IMU, "
+                "depth sensor, attitude estimate, DVL and position fix of marinejax.plant.sensors; the observation "
+                "is latency.observation control steps old and actions reach the thrusters latency.action steps late",
+        "sensors": dataclasses.asdict(config.sensors),
+    }
+
+
 def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
     """The policy of a run directory, checkpoint or shipped policy (env name), with its metadata."""
     import jax
@@ -76,7 +90,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
         "checkpoint": str(ckpt),
         "control_dt_s": c.control_dt,
         "observation_size": int(env.observation_size),
-        "observation_mode": "state: the exact simulator state (no sensor model)",
+        "observation_mode": _observation_mode(c),
         "observation_layout": inspect.getdoc(inspect.getmodule(type(env))),
         "action_size": int(env.action_size),
         "action": action,

@@ -17,6 +17,15 @@ Observation: an array (the task's observation, then the integral below). With
 "privileged_state" appends what no sensor gives (current, disturbance, the episode's parameters,
 `Plant.privileged`) for an asymmetric critic (Brax PPO: `value_obs_key="privileged_state"`).
 
+Observation modes (`observation_mode`): "state" observes the exact state. "sensors" observes what
+the vehicle's sensors give (`plant/sensors.py`: IMU, depth, attitude, DVL, position fix) through the
+complementary filter it would run (`plant/estimator.py`): the task's `observe` reads the estimated
+state, so the layout, units and frames are the same as in "state" mode. The policy then sees the
+observation of `sensors.latency.observation` steps ago and its action reaches the thrusters
+`sensors.latency.action` steps later (both drawn per episode with `sensors.randomization`). Rewards,
+errors, termination and the statistics always use the exact state; the privileged state (critic)
+starts with the exact-state observation.
+
 Integral action: a policy that sees only the present error cannot remove a steady offset (net
 weight, a current, a disturbance force) that it was not trained on. Every task therefore appends to
 its observation a leaky, clipped integral of the tracking error, as a PI controller's integrator:
@@ -44,6 +53,7 @@ from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams, PlantState
+from marinejax.plant.estimator import estimated_state, estimator_init, estimator_update
 from marinejax.vehicle import Vehicle
 
 
@@ -80,6 +90,9 @@ class RewardConfig:
     angular_velocity: float = 0.02
 
 
+OBSERVATION_MODES = ("state", "sensors")
+
+
 @dataclasses.dataclass(frozen=True)
 class EnvConfig(PlantConfig):
     """Settings shared by every task: the plant's (`PlantConfig`: timing, integrator, action mode,
@@ -90,6 +103,7 @@ class EnvConfig(PlantConfig):
     integral_time_constant: float = 2.0  # s, leak of the integrated error in the observation; 0: not observed
     integral_error_clip: float = 0.2  # m and rad, per axis: the integrand is clipped to ± this
     privileged_observation: bool = False  # obs {"state", "privileged_state"} for an asymmetric critic
+    observation_mode: str = "state"  # "state": exact; "sensors": the estimate from the sensor models
     reward: RewardConfig = RewardConfig()
     reset: ResetConfig = ResetConfig()
 
@@ -98,6 +112,8 @@ class EnvConfig(PlantConfig):
         for name in ("max_distance", "integral_error_clip"):
             if not getattr(self, name) > 0:
                 raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
+        if self.observation_mode not in OBSERVATION_MODES:
+            raise UserError(f"config 'observation_mode' must be one of {list(OBSERVATION_MODES)}, got {self.observation_mode!r}")
         if self.episode_length < 1:
             raise UserError(f"config 'episode_length' must be >= 1, got {self.episode_length}")
         if not self.integral_time_constant >= 0:
@@ -166,7 +182,7 @@ class MarineEnv(Env):
     def reset(self, rng: jax.Array, params: PlantParams | None = None) -> State:
         """A new episode: target, start pose, current and (unless `params` is given) the physical
         parameters drawn from `rng`."""
-        rng, k_task, k_pose, k_cur, k_params, _ = jax.random.split(rng, 6)
+        rng, k_task, k_pose, k_cur, k_params, k_sensors = jax.random.split(rng, 6)
         task = self._sample_task(k_task)
         if params is None:
             params = self.plant.sample_params(k_params)
@@ -181,7 +197,17 @@ class MarineEnv(Env):
             "integral": jnp.zeros(4),
         }
         vs = self.plant.vehicle_state(ps)
+        if self._sensor_mode:
+            suite = self.plant.sensors
+            k_draw, k_init = jax.random.split(k_sensors)
+            info["sensors"], m = suite.init(k_init, suite.sample_params(k_draw), vs)
+            info["estimator"] = estimator_init(suite, m)
+            info["action_buffer"] = jnp.zeros((suite.max_action_latency + 1, self.action_size))
         obs = self._observation(vs, info, action, ps)
+        if self._sensor_mode:
+            policy_obs = self._policy_part(obs)
+            size = self.plant.sensors.max_observation_latency + 1
+            info["observation_buffer"] = jnp.broadcast_to(policy_obs, (size,) + policy_obs.shape)
         metrics = self._metrics(self.reward_terms(vs, info, action), self.errors(vs, info), jnp.zeros(()), jnp.zeros(()))
         metrics["window_error"] = jnp.zeros(())
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
@@ -190,12 +216,26 @@ class MarineEnv(Env):
         cfg = self.config
         info = dict(state.info)
         rng, k_plant = jax.random.split(info["rng"])
-        ps, finite = self.plant.step(info["params"], state.pipeline_state, action, k_plant)
         action = jnp.clip(action, -1.0, 1.0)
+        applied = action
+        if self._sensor_mode:
+            rng, k_sensors = jax.random.split(rng)
+            buffer = jnp.concatenate([action[None], info["action_buffer"][:-1]])
+            info["action_buffer"] = buffer
+            applied = buffer[info["sensors"].params.action_latency]
+        ps, finite = self.plant.step(info["params"], state.pipeline_state, applied, k_plant)
         info.update(rng=rng, time=info["time"] + cfg.control_dt)
         vs = self.plant.vehicle_state(ps)
-        info["integral"] = self._integrate_error(info["integral"], vs, info)
-        obs = self._observation(vs, info, action, ps)
+        if self._sensor_mode:
+            suite = self.plant.sensors
+            info["sensors"], m = suite.step(info["sensors"], vs, k_sensors)
+            info["estimator"] = estimator_update(suite, info["estimator"], m)
+        obs = self._observation(vs, info, action, ps, integrate=True)
+        if self._sensor_mode:
+            buffer = jnp.concatenate([self._policy_part(obs)[None], info["observation_buffer"][:-1]])
+            info["observation_buffer"] = buffer
+            delayed = buffer[info["sensors"].params.observation_latency]
+            obs = {**obs, "state": delayed} if isinstance(obs, dict) else delayed
         terms, errors = self.reward_terms(vs, info, action), self.errors(vs, info)
         info["last_action"] = action
         out = errors["position_error"] > cfg.max_distance
@@ -219,14 +259,39 @@ class MarineEnv(Env):
             "position_error": jnp.linalg.norm(self.target_position(info) - vs.position),
         }
 
-    def _observation(self, vs: VehicleState, info: dict, action: jnp.ndarray, ps: PlantState):
-        obs = self.observe(vs, info, action)
-        if self.config.integral_time_constant > 0:
-            integral = info["integral"]
-            obs = jnp.concatenate([obs, quat_to_mat(vs.quaternion).T @ integral[:3], integral[3:]])
+    @functools.cached_property
+    def _sensor_mode(self) -> bool:
+        return self.config.observation_mode == "sensors"
+
+    def measured_state(self, vs: VehicleState, info: dict) -> VehicleState:
+        """What the policy's observation is computed from: the exact state `vs`, or in sensor mode
+        the estimate from the sensors (`plant/estimator.py`)."""
+        if not self._sensor_mode:
+            return vs
+        return estimated_state(info["estimator"], info["sensors"].last, vs.thrust)
+
+    def _observation(self, vs: VehicleState, info: dict, action: jnp.ndarray, ps: PlantState, integrate: bool = False):
+        """The observation at exact state `vs` (updates info["integral"] first when `integrate`)."""
+        measured = self.measured_state(vs, info)
+        if integrate:
+            info["integral"] = self._integrate_error(info["integral"], measured, info)
+
+        def with_integral(state: VehicleState) -> jnp.ndarray:
+            obs = self.observe(state, info, action)
+            if self.config.integral_time_constant > 0:
+                integral = info["integral"]
+                obs = jnp.concatenate([obs, quat_to_mat(state.quaternion).T @ integral[:3], integral[3:]])
+            return obs
+
+        obs = with_integral(measured)
         if not self.config.privileged_observation:
             return obs
-        return {"state": obs, "privileged_state": jnp.concatenate([obs, self.plant.privileged(info["params"], ps)])}
+        exact = obs if measured is vs else with_integral(vs)
+        return {"state": obs, "privileged_state": jnp.concatenate([exact, self.plant.privileged(info["params"], ps)])}
+
+    @staticmethod
+    def _policy_part(obs):
+        return obs["state"] if isinstance(obs, dict) else obs
 
     def _integrate_error(self, integral: jnp.ndarray, vs: VehicleState, info: dict) -> jnp.ndarray:
         """Leaky, clipped integral (4,) of [world position error (m), heading error (rad)] (module docstring)."""

@@ -2,7 +2,8 @@
 
 `Plant` steps a vehicle under explicit `PlantParams` (rigid body, fluid, thrusters, disturbance),
 drawn per episode by `Plant.sample_params` (`randomization`, `disturbance`) and with an ocean
-current (`current`). Envs, controllers, identification and export build on it; nothing here knows
+current (`current`). `sensors` models what the vehicle measures and `estimator` the filter it runs
+on those measurements (`Plant.sensors`). Envs, controllers, identification and export build on it; nothing here knows
 about tasks or rewards.
 """
 
@@ -11,6 +12,7 @@ from marinejax.plant.disturbance import DisturbanceConfig
 from marinejax.plant.params import PlantParams, apply_params, nominal_params
 from marinejax.plant.plant import Plant, PlantConfig, PlantState
 from marinejax.plant.randomization import RandomizationConfig
+from marinejax.plant.sensors import Measurement, SensorConfig, SensorParams, SensorState, SensorSuite
 
 __all__ = [
     "CurrentConfig",
@@ -20,7 +22,12 @@ __all__ = [
     "PlantConfig",
     "PlantParams",
     "PlantState",
+    "Measurement",
     "RandomizationConfig",
+    "SensorConfig",
+    "SensorParams",
+    "SensorState",
+    "SensorSuite",
     "apply_params",
     "nominal_params",
 ]

@@ -34,6 +34,7 @@ from marinejax.plant.current import CurrentConfig, CurrentState, sample_current,
 from marinejax.plant.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
 from marinejax.plant.params import PlantParams, apply_params, nominal_params
 from marinejax.plant.randomization import RandomizationConfig, sample_dynamics
+from marinejax.plant.sensors import SensorConfig, SensorSuite
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -50,6 +51,7 @@ class PlantConfig:
     current: CurrentConfig = CurrentConfig()
     randomization: RandomizationConfig = RandomizationConfig()
     disturbance: DisturbanceConfig = DisturbanceConfig()
+    sensors: SensorConfig = SensorConfig()  # read by envs in observation_mode "sensors"
 
     def __post_init__(self):
         if self.action_mode not in COMMAND_MODES:
@@ -82,6 +84,7 @@ class Plant:
         self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
         self.action_size = self.vehicle.num_thrusters if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+        self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
 
     def nominal_params(self) -> PlantParams:
         """The vehicle's parameters as loaded, no disturbance."""
