@@ -165,7 +165,10 @@ def _print_eval(console, result: dict[str, Any]) -> None:
         f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m) "
         f"{100 * result['success_rate']:.0f} %"
     )
-    console.print(f"  checkpoint: {result['checkpoint']} ({result['checkpoint_kind']})")
+    if "checkpoint" in result:
+        console.print(f"  checkpoint: {result['checkpoint']} ({result['checkpoint_kind']})")
+    else:
+        console.print(f"  controller: {result['controller']} {result['config']}, gains {result['gains']}")
     for key in ("plot", "video", "video_error"):
         if key in result:
             console.print(f"  {key.replace('_', ' ')}: {result[key]}")
@@ -182,9 +185,16 @@ def _eval(args: argparse.Namespace) -> int:
         overrides["current.mode"] = args.current
     if args.episodes < 1:
         raise UserError(f"--episodes must be >= 1, got {args.episodes}")
-    result = evaluate_run(Path(args.path), out_dir=args.out, episodes=args.episodes, seed=args.seed,
-                          env_overrides=overrides, video=not args.no_video, which=args.checkpoint)
-    _print_eval(make_console(), result)
+    console = make_console()
+    if args.controller:
+        from marinejax.train.evaluate import evaluate_controller
+
+        result = evaluate_controller(args.path, args.controller, out_dir=args.out, episodes=args.episodes, seed=args.seed,
+                                     env_overrides=overrides, video=not args.no_video, progress=console.print)
+    else:
+        result = evaluate_run(Path(args.path), out_dir=args.out, episodes=args.episodes, seed=args.seed,
+                              env_overrides=overrides, video=not args.no_video, which=args.checkpoint)
+    _print_eval(console, result)
     return 0
 
 
@@ -233,8 +243,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
     tr.add_argument("--no-video", action="store_true", help="skip the video of the final evaluation")
 
-    ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory or checkpoint: statistics, path plot, video")
-    ev.add_argument("path", help="run directory (its newest checkpoint) or a checkpoint directory")
+    ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory, checkpoint or classical controller: statistics, path plot, video")
+    ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")
+    ev.add_argument("--controller", choices=["pid"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
                     help="for a run directory: the checkpoint with the lowest evaluation error during training "
                          "(default) or the newest")

@@ -289,6 +289,27 @@ class MarineEnv(Env):
         exact = obs if measured is vs else with_integral(vs)
         return {"state": obs, "privileged_state": jnp.concatenate([exact, self.plant.privileged(info["params"], ps)])}
 
+    def observation_fields(self) -> dict[str, slice]:
+        """Where each quantity sits in the observation array (the task's fields, then the integral):
+        e.g. "position_error" (body, m), "velocity" (body, m/s), "integral_position" (body, m s).
+        Classical controllers read the observation through these, as a policy would."""
+        fields = dict(self.task_observation_fields())
+        if self.config.integral_time_constant > 0:
+            n = self._task_observation_size
+            fields.update(integral_position=slice(n, n + 3), integral_heading=slice(n + 3, n + 4))
+        return fields
+
+    @functools.cached_property
+    def _task_observation_size(self) -> int:
+        return max(s.stop for s in self.task_observation_fields().values())
+
+    def task_observation_fields(self) -> dict[str, slice]:
+        """The task's observation layout (before the integral): name → slice. Every task provides
+        position_error (body, m, to the reference now), up (world up in the body frame), heading
+        (sin, cos of the heading error), velocity (body, m/s), angular_velocity (body, rad/s) and
+        last_action; tracking tasks also reference_velocity (body, m/s)."""
+        raise NotImplementedError
+
     @staticmethod
     def _policy_part(obs):
         return obs["state"] if isinstance(obs, dict) else obs

@@ -63,6 +63,11 @@ class StationKeeping(MarineEnv):
     def _initial_pose(self, rng, task: StationTarget) -> VehicleState:
         return self._random_start(rng, task.position, task.yaw)
 
+    def task_observation_fields(self) -> dict[str, slice]:
+        n = self.action_size
+        return {"position_error": slice(0, 3), "up": slice(3, 6), "heading": slice(6, 8), "velocity": slice(8, 11),
+                "angular_velocity": slice(11, 14), "last_action": slice(14, 14 + n)}
+
     def observe(self, vs: VehicleState, info, action):
         task: StationTarget = info["task"]
         rot = quat_to_mat(vs.quaternion)

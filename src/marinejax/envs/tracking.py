@@ -81,6 +81,12 @@ class Tracking(MarineEnv):
         start, _ = reference(self.kind, task.trajectory, jnp.zeros(()))
         return self._random_start(rng, start, task.yaw)
 
+    def task_observation_fields(self) -> dict[str, slice]:
+        k, n = 3 * self.config.num_reference_points, self.action_size
+        return {"position_error": slice(0, 3), "reference_ahead": slice(0, k), "reference_velocity": slice(k, k + 3),
+                "up": slice(k + 3, k + 6), "heading": slice(k + 6, k + 8), "velocity": slice(k + 8, k + 11),
+                "angular_velocity": slice(k + 11, k + 14), "last_action": slice(k + 14, k + 14 + n)}
+
     def observe(self, vs: VehicleState, info, action):
         task: TrackingTask = info["task"]
         c = self.config

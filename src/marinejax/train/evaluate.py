@@ -1,6 +1,6 @@
-"""Deterministic evaluation of a trained policy, as `marinejax eval` runs it: statistics
-(`statistics`), path plot (`paths`) and video (`marinejax.render`) of a run's checkpoint
-(`checkpoints`), written to eval.json."""
+"""Deterministic evaluation of a trained policy or a classical controller, as `marinejax eval` runs
+it: statistics (`statistics`), path plot (`paths`) and video (`marinejax.render`) of a run's
+checkpoint (`checkpoints`) or of `marinejax.controllers`, written to eval.json."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Any
 
 from marinejax.train.checkpoints import best_checkpoint, latest_checkpoint, load_policy
 from marinejax.train.paths import plot_paths
-from marinejax.train.statistics import rollout_policy, summarize
+from marinejax.train.statistics import rollout_controller, rollout_policy, summarize
 
 
 def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
@@ -31,15 +31,34 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     out_dir = Path(out_dir) if out_dir else run_dir / "eval"
     out_dir.mkdir(parents=True, exist_ok=True)
     result = rollout_policy(env, policy, episodes, seed)
-    summary = {"env": config.env, "checkpoint": str(ckpt), "checkpoint_kind": kind, "env_overrides": env_overrides or {}, "seed": seed,
-               **summarize(env, result)}
-    summary["plot"] = str(plot_paths(result, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir / "paths.png"))
+    summary = {"env": config.env, "checkpoint": str(ckpt), "checkpoint_kind": kind, "env_overrides": env_overrides or {}, "seed": seed}
+    return _write(env, result, summary, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir, video)
+
+
+def evaluate_controller(env_name: str, controller: str, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
+                        env_overrides: dict[str, Any] | None = None, video: bool = True, progress=None) -> dict[str, Any]:
+    """Evaluate a classical controller (`marinejax.controllers`, tuned first) on env `env_name`
+    exactly as a policy; write eval.json, path PNG and video into out_dir (default runs/eval-<env>-<controller>)."""
+    import marinejax
+    from marinejax.controllers import make_controller
+
+    env = marinejax.make(env_name, **(env_overrides or {}))
+    ctrl, description = make_controller(controller, env, progress=progress)
+    out_dir = Path(out_dir) if out_dir else Path("runs") / f"eval-{env_name}-{controller}"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    result = rollout_controller(env, ctrl, episodes, seed)
+    summary = {"env": env_name, **description, "env_overrides": env_overrides or {}, "seed": seed}
+    return _write(env, result, summary, f"{env_name}: {controller}, episode 0", out_dir, video)
+
+
+def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path, video: bool) -> dict[str, Any]:
+    summary = {**summary, **summarize(env, result)}
+    summary["plot"] = str(plot_paths(result, title, out_dir / "paths.png"))
     if video:
         from marinejax.render import render_video
 
-        model = env.vehicle.path
         try:
-            summary["video"] = str(render_video(model, result["position"][0], result["quaternion"][0], result["target"][0],
+            summary["video"] = str(render_video(env.vehicle.path, result["position"][0], result["quaternion"][0], result["target"][0],
                                                 1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr))
         except RuntimeError as err:
             summary["video_error"] = str(err)

@@ -13,10 +13,15 @@ from typing import Any
 import jax
 import numpy as np
 
-from marinejax.control import policy_controller, rollout
+from marinejax.control import Controller, policy_controller, rollout
 from marinejax.envs.base import MarineEnv
 
 def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict[str, np.ndarray]:
+    """`rollout_controller` of a policy (observation → action)."""
+    return rollout_controller(env, policy_controller(policy), episodes, seed)
+
+
+def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, seed: int = 0) -> dict[str, np.ndarray]:
     """Run `episodes` full episodes (episode_length steps, no early reset) in one jitted call.
 
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
@@ -30,7 +35,7 @@ def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict
                 s.metrics["heading_error_deg"])
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    _, (pos, quat, target, err, done, head) = rollout(env, policy_controller(policy), keys, steps, record)
+    _, (pos, quat, target, err, done, head) = rollout(env, controller, keys, steps, record)
     to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
     return {
         "time": env.config.control_dt * np.arange(1, steps + 1),

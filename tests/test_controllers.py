@@ -1,0 +1,92 @@
+"""Classical controllers: the pole placement, the inverse thruster curve, and closed-loop results on
+the same episodes and statistics as a policy."""
+
+import json
+import subprocess
+import sys
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import marinejax
+from marinejax.controllers import PIDConfig, inverse_thrust, pid_controller, pid_gains
+from marinejax.errors import UserError
+from marinejax.thrusters import t200_thrust
+from marinejax.train.statistics import rollout_controller, summarize
+
+
+@pytest.fixture(scope="module")
+def heavy():
+    return marinejax.make("BlueROV2Heavy-StationKeeping")
+
+
+def test_gains_place_a_triple_pole_at_minus_the_bandwidth(heavy):
+    config = PIDConfig(translation_bandwidth=2.0, rotation_bandwidth=5.0)
+    g = pid_gains(heavy, config)
+    p = heavy.plant.nominal_params()
+    mass = np.concatenate([np.full(3, float(p.mass)), np.asarray(p.inertia)]) + np.asarray(p.hydro.added_mass)
+    damping = np.asarray(p.hydro.linear_damping)
+    for axis, w in [(0, 2.0), (1, 2.0), (2, 2.0), (5, 5.0)]:  # axes with an integral: M s^3 + (D + kd) s^2 + kp s + ki
+        roots = np.roots([mass[axis], damping[axis] + g.kd[axis], g.kp[axis], g.ki[axis]])
+        np.testing.assert_allclose(roots.real, -w, rtol=2e-3, atol=2e-3 * w)
+    for axis, w in [(3, 5.0), (4, 5.0)]:  # roll, pitch: PD, M s^2 + (D + kd) s + kp: √3 w, damping ratio √3/2
+        roots = np.roots([mass[axis], damping[axis] + g.kd[axis], g.kp[axis]])
+        np.testing.assert_allclose(np.abs(roots), np.sqrt(3) * w, rtol=1e-6)
+        np.testing.assert_allclose(-roots.real / np.abs(roots), np.sqrt(3) / 2, rtol=1e-6)
+
+
+def test_inverse_thrust_inverts_the_t200_curve(heavy):
+    throttle = inverse_thrust(heavy)
+    p = heavy.plant.nominal_params()
+    forces = jnp.linspace(-30.0, 35.0, 27)
+    u = throttle(jnp.broadcast_to(forces[:, None], (27, heavy.vehicle.num_thrusters)))
+    back = t200_thrust(heavy.vehicle.sys.thrusters.curve, u, p.voltage) * p.thruster_gain
+    np.testing.assert_allclose(back, np.broadcast_to(forces[:, None], back.shape), atol=0.05)
+    assert float(throttle(jnp.full(heavy.vehicle.num_thrusters, 1e3))[0]) == 1.0
+    assert float(throttle(jnp.full(heavy.vehicle.num_thrusters, -1e3))[0]) == -1.0
+
+
+@pytest.mark.parametrize("env_name, config, median_below", [
+    ("BlueROV2Heavy-StationKeeping", PIDConfig(3.0, 6.0), 0.002),
+    ("BlueROV2-StationKeepingDisturbed", PIDConfig(3.0, 6.0), 0.015),
+    ("BlueROV2Heavy-CircleTracking", PIDConfig(4.0, 8.0), 0.01),
+])
+def test_pid_reaches_the_target_on_the_evaluation_statistic(env_name, config, median_below):
+    env = marinejax.make(env_name)
+    stats = summarize(env, rollout_controller(env, pid_controller(env, config), episodes=8, seed=12345))
+    assert stats["position_error_median_m"] < median_below, stats
+    assert stats["terminated_episodes"] == 0
+
+
+def test_pid_reads_the_sensor_observation_too():
+    env = marinejax.make("BlueROV2Heavy-StationKeeping", observation_mode="sensors")
+    stats = summarize(env, rollout_controller(env, pid_controller(env, PIDConfig(3.0, 6.0)), episodes=4, seed=3))
+    assert 0.002 < stats["position_error_median_m"] < 0.1  # worse than with the exact state, still holds station
+
+
+def test_pid_refuses_wrench_actions():
+    env = marinejax.make("BlueROV2Heavy-StationKeeping", action_mode="wrench")
+    with pytest.raises(UserError, match="action_mode"):
+        pid_controller(env)
+    with pytest.raises(UserError, match="translation_bandwidth"):
+        PIDConfig(translation_bandwidth=-1.0)
+
+
+@pytest.mark.slow
+def test_eval_runs_a_tuned_controller_from_the_command_line(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "marinejax.cli", "eval", "BlueROV2Heavy-StationKeeping", "--controller", "pid",
+         "--episodes", "8", "--no-video", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "PID tuning: bandwidth 1 rad/s" in proc.stdout and "controller: pid" in proc.stdout
+    result = json.loads((tmp_path / "eval.json").read_text())
+    assert result["controller"] == "pid" and result["position_error_median_m"] < 0.005
+    tuning = result["tuning"]["mean_error_m_by_bandwidth"]
+    assert result["config"]["translation_bandwidth"] == float(min(tuning, key=tuning.get))
+    bad = subprocess.run([sys.executable, "-m", "marinejax.cli", "eval", "BlueROV2Heavy-StationKeeping", "--controller", "mpc"],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "mpc" in bad.stderr
