@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import marinejax
-from marinejax.controllers import PIDConfig, inverse_thrust, pid_controller, pid_gains
+from marinejax.controllers import LQRConfig, PIDConfig, inverse_thrust, lqr_controller, lqr_gain, pid_controller, pid_gains
 from marinejax.errors import UserError
 from marinejax.thrusters import t200_thrust
 from marinejax.train.statistics import rollout_controller, summarize
@@ -48,14 +48,31 @@ def test_inverse_thrust_inverts_the_t200_curve(heavy):
     assert float(throttle(jnp.full(heavy.vehicle.num_thrusters, -1e3))[0]) == -1.0
 
 
-@pytest.mark.parametrize("env_name, config, median_below", [
-    ("BlueROV2Heavy-StationKeeping", PIDConfig(3.0, 6.0), 0.002),
-    ("BlueROV2-StationKeepingDisturbed", PIDConfig(3.0, 6.0), 0.015),
-    ("BlueROV2Heavy-CircleTracking", PIDConfig(4.0, 8.0), 0.01),
+def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
+    """The discrete closed loop of the design model is stable, and the 6-thruster BlueROV2's pitch
+    (no thruster can make a pitch moment) is left to its restoring moment: no gain on pitch error."""
+    for vehicle, n in (("BlueROV2Heavy", 8), ("BlueROV2", 6)):
+        env = marinejax.make(f"{vehicle}-StationKeeping")
+        k = lqr_gain(env, LQRConfig())
+        assert k.shape == (n, 16) and np.all(np.isfinite(k))
+        alloc = np.asarray(env.vehicle.sys.thrusters.allocation)
+        pitch_moment = alloc[4] @ k  # pitch moment the feedback commands per unit of each state
+        if vehicle == "BlueROV2":
+            np.testing.assert_allclose(pitch_moment, 0.0, atol=1e-6)
+        else:
+            assert pitch_moment[4] > 1.0  # N m per rad of pitch
+
+
+@pytest.mark.parametrize("env_name, controller, median_below", [
+    ("BlueROV2Heavy-StationKeeping", pid_controller, 0.002),
+    ("BlueROV2-StationKeepingDisturbed", pid_controller, 0.015),
+    ("BlueROV2Heavy-CircleTracking", lqr_controller, 0.01),
+    ("BlueROV2-StationKeepingDisturbed", lqr_controller, 0.01),
 ])
-def test_pid_reaches_the_target_on_the_evaluation_statistic(env_name, config, median_below):
+def test_controllers_reach_the_target_on_the_evaluation_statistic(env_name, controller, median_below):
     env = marinejax.make(env_name)
-    stats = summarize(env, rollout_controller(env, pid_controller(env, config), episodes=8, seed=12345))
+    config = PIDConfig(3.0, 6.0) if controller is pid_controller else LQRConfig(position_scale=0.02)
+    stats = summarize(env, rollout_controller(env, controller(env, config), episodes=8, seed=12345))
     assert stats["position_error_median_m"] < median_below, stats
     assert stats["terminated_episodes"] == 0
 
@@ -70,6 +87,8 @@ def test_pid_refuses_wrench_actions():
     env = marinejax.make("BlueROV2Heavy-StationKeeping", action_mode="wrench")
     with pytest.raises(UserError, match="action_mode"):
         pid_controller(env)
+    with pytest.raises(UserError, match="action_mode"):
+        lqr_controller(env)
     with pytest.raises(UserError, match="translation_bandwidth"):
         PIDConfig(translation_bandwidth=-1.0)
 
@@ -82,10 +101,10 @@ def test_eval_runs_a_tuned_controller_from_the_command_line(tmp_path):
         capture_output=True, text=True, timeout=900,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "PID tuning: bandwidth 1 rad/s" in proc.stdout and "controller: pid" in proc.stdout
+    assert "PID tuning: translation bandwidth (rad/s; rotation twice) 1:" in proc.stdout and "controller: pid" in proc.stdout
     result = json.loads((tmp_path / "eval.json").read_text())
     assert result["controller"] == "pid" and result["position_error_median_m"] < 0.005
-    tuning = result["tuning"]["mean_error_m_by_bandwidth"]
+    tuning = result["tuning"]["mean_error_m"]
     assert result["config"]["translation_bandwidth"] == float(min(tuning, key=tuning.get))
     bad = subprocess.run([sys.executable, "-m", "marinejax.cli", "eval", "BlueROV2Heavy-StationKeeping", "--controller", "mpc"],
                          capture_output=True, text=True, timeout=300)

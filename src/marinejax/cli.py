@@ -168,7 +168,8 @@ def _print_eval(console, result: dict[str, Any]) -> None:
     if "checkpoint" in result:
         console.print(f"  checkpoint: {result['checkpoint']} ({result['checkpoint_kind']})")
     else:
-        console.print(f"  controller: {result['controller']} {result['config']}, gains {result['gains']}")
+        gains = f", gains {result['gains']}" if "gains" in result else ""
+        console.print(f"  controller: {result['controller']} {result['config']}{gains} (tuned on seed {result['tuning']['seed']})")
     for key in ("plot", "video", "video_error"):
         if key in result:
             console.print(f"  {key.replace('_', ' ')}: {result[key]}")
@@ -245,7 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory, checkpoint or classical controller: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")
-    ev.add_argument("--controller", choices=["pid"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
+    ev.add_argument("--controller", choices=["pid", "lqr"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
                     help="for a run directory: the checkpoint with the lowest evaluation error during training "
                          "(default) or the newest")

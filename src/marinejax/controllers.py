@@ -9,7 +9,7 @@ rigid-body plus added mass (inertia) and D_i the linear damping. A PID on that a
 closed loop M s³ + (D + k_d) s² + k_p s + k_i; placing its three poles at −ω (critically damped):
   k_p = 3 M ω², k_d = 3 M ω − D (≥ 0), k_i = M ω³,
 with one bandwidth ω for translation and one for rotation, twice as fast (`PIDConfig`). The
-bandwidth is tuned per env by `tune_pid`: the one of a fixed grid with the lowest mean error over
+bandwidth is tuned per env by `tune`: the one of a fixed grid with the lowest mean error over
 episodes drawn from a seed other than the evaluation's (the thruster lag and the 20 Hz control
 rate, which the design model leaves out, are what stops higher bandwidths from paying off). The integral is the env's
 leaky integral of the error (in the observation); roll and pitch have no integral (k_i = 0 leaves
@@ -19,6 +19,11 @@ Feedforward: the reference velocity, and the damping it needs (linear and quadra
 is allocated to the thrusters with the pseudo-inverse of the allocation matrix (least squares:
 the 6-thruster BlueROV2 cannot make a pitch moment) and turned into throttles through the inverse
 of the T200 curve at the nominal supply voltage. The thruster lag is not in the design model.
+
+LQR (`lqr_controller`, an LQI: the integral states are the observation's), designed on the coupled
+hover model with the thrusts as inputs (`lqr_gain`), so it knows which wrenches the vehicle can make;
+weights by Bryson's rule, with the position scale tuned by `tune` like the PID's bandwidth. Same
+feedforward as the PID.
 """
 
 from __future__ import annotations
@@ -88,79 +93,192 @@ def inverse_thrust(env: MarineEnv, samples: int = 801):
     return throttle
 
 
-def pid_controller(env: MarineEnv, config: PIDConfig = PIDConfig()) -> Controller:
-    """The PID of the module docstring on `env` (thruster action mode), reading its observation."""
+@dataclasses.dataclass(frozen=True)
+class _Hover:
+    """What both controllers know of the vehicle: its nominal model around hover, and how to read the
+    observation and command the thrusters."""
+
+    fields: dict
+    mass: np.ndarray  # (6,) rigid + added, kg and kg m^2
+    damping: np.ndarray  # (6,) linear, N s/m and N m s/rad
+    quadratic: np.ndarray  # (6,)
+    net_up: float  # N, buoyancy minus weight along world up
+    buoyancy: float  # N
+    cob: np.ndarray  # (3,) m, body, from the centre of gravity
+    allocation: np.ndarray  # (6, N)
+    throttle: object  # thrust (N) → throttle
+    max_thrust: float  # N, the smaller of the forward and reverse steady thrust at the nominal voltage
+
+
+def _hover(env: MarineEnv) -> _Hover:
     if env.config.action_mode != "thrusters":
-        raise UserError(f"the PID controller commands thrusters; the env has action_mode={env.config.action_mode!r}")
-    fields = env.observation_fields()
-    gains = pid_gains(env, config)
-    kp, kd, ki = (jnp.asarray(g, jnp.float32) for g in (gains.kp, gains.kd, gains.ki))
+        raise UserError(f"the classical controllers command thrusters; the env has action_mode={env.config.action_mode!r}")
     p = env.plant.nominal_params()
     g = env.plant.gravity
-    net_up = float(p.net_buoyancy(g))  # N, buoyancy minus weight, along world up
-    buoyancy = float(p.hydro.fluid_density * p.hydro.volume * g)  # N
-    cob = jnp.asarray(p.hydro.center_of_buoyancy, jnp.float32)  # m, body
-    lin_d, quad_d = jnp.asarray(p.hydro.linear_damping[:3]), jnp.asarray(p.hydro.quadratic_damping[:3])
-    alloc_pinv = jnp.asarray(np.linalg.pinv(np.asarray(env.vehicle.sys.thrusters.allocation)), jnp.float32)
-    throttle = inverse_thrust(env)
-    has_integral = "integral_position" in fields
+    full = np.asarray(t200_thrust(env.vehicle.sys.thrusters.curve, jnp.array([-1.0, 1.0]), p.voltage)) * np.min(np.asarray(p.thruster_gain))
+    return _Hover(
+        fields=env.observation_fields(),
+        mass=np.concatenate([np.full(3, float(p.mass)), np.asarray(p.inertia, float)]) + np.asarray(p.hydro.added_mass, float),
+        damping=np.asarray(p.hydro.linear_damping, float), quadratic=np.asarray(p.hydro.quadratic_damping, float),
+        net_up=float(p.net_buoyancy(g)), buoyancy=float(p.hydro.fluid_density * p.hydro.volume * g),
+        cob=np.asarray(p.hydro.center_of_buoyancy, float), allocation=np.asarray(env.vehicle.sys.thrusters.allocation, float),
+        throttle=inverse_thrust(env), max_thrust=float(np.min(np.abs(full))),
+    )
+
+
+def _read(h: _Hover, obs: jax.Array):
+    """From the observation: the error [position (body, m), roll, pitch, heading (rad)] to drive to
+    zero, the rate error [reference − body velocity, −angular velocity], the integral [position, heading]
+    (zeros without one), the world up in the body frame and the reference velocity (body, m/s)."""
+    f = h.fields
+    up = obs[f["up"]]
+    s, c = obs[f["heading"]]
+    v_ref = obs[f["reference_velocity"]] if "reference_velocity" in f else jnp.zeros(3)
+    roll, pitch = jnp.arctan2(up[1], up[2]), -jnp.arcsin(jnp.clip(up[0], -1.0, 1.0))
+    error = jnp.concatenate([obs[f["position_error"]], jnp.stack([-roll, -pitch, jnp.arctan2(s, c)])])
+    rate_error = jnp.concatenate([v_ref - obs[f["velocity"]], -obs[f["angular_velocity"]]])
+    if "integral_position" in f:
+        integral = jnp.concatenate([obs[f["integral_position"]], obs[f["integral_heading"]]])
+    else:
+        integral = jnp.zeros(4)
+    return error, rate_error, integral, up, v_ref
+
+
+def _feedforward(h: _Hover, up: jax.Array, v_ref: jax.Array) -> jax.Array:
+    """Body wrench (6,) that cancels weight and buoyancy (from the measured attitude) and the damping at the reference velocity."""
+    restoring = jnp.concatenate([h.net_up * up, jnp.cross(jnp.asarray(h.cob), h.buoyancy * up)])
+    drag = jnp.asarray(h.damping[:3]) * v_ref + jnp.asarray(h.quadratic[:3]) * jnp.abs(v_ref) * v_ref
+    return jnp.concatenate([drag, jnp.zeros(3)]) - restoring
+
+
+def pid_controller(env: MarineEnv, config: PIDConfig = PIDConfig()) -> Controller:
+    """The PID of the module docstring on `env` (thruster action mode), reading its observation."""
+    h = _hover(env)
+    gains = pid_gains(env, config)
+    kp, kd = jnp.asarray(gains.kp, jnp.float32), jnp.asarray(gains.kd, jnp.float32)
+    ki = jnp.asarray(gains.ki[[0, 1, 2, 5]], jnp.float32)
+    alloc_pinv = jnp.asarray(np.linalg.pinv(h.allocation), jnp.float32)
 
     def act(carry, obs, info):
-        e = obs[fields["position_error"]]
-        v = obs[fields["velocity"]]
-        w = obs[fields["angular_velocity"]]
-        up = obs[fields["up"]]
-        s, c = obs[fields["heading"]]
-        v_ref = obs[fields["reference_velocity"]] if "reference_velocity" in fields else jnp.zeros(3)
-        roll, pitch = jnp.arctan2(up[1], up[2]), -jnp.arcsin(jnp.clip(up[0], -1.0, 1.0))
-        error = jnp.concatenate([e, jnp.stack([-roll, -pitch, jnp.arctan2(s, c)])])
-        rate_error = jnp.concatenate([v_ref - v, -w])
-        if has_integral:
-            # the observation's leaky integral ∫ e exp(−(t−s)/T) ds; close to ∫ e for times below T
-            integral = jnp.concatenate([obs[fields["integral_position"]], jnp.zeros(2), obs[fields["integral_heading"]]])
-        else:
-            integral = jnp.zeros(6)
-        tau = kp * error + kd * rate_error + ki * integral
-        feedforward = lin_d * v_ref + quad_d * jnp.abs(v_ref) * v_ref
-        restoring = jnp.concatenate([net_up * up, jnp.cross(cob, buoyancy * up)])  # what weight and buoyancy do
-        wrench = tau + jnp.concatenate([feedforward, jnp.zeros(3)]) - restoring
-        return jnp.clip(throttle(alloc_pinv @ wrench), -1.0, 1.0), carry
+        error, rate_error, integral, up, v_ref = _read(h, obs)
+        # the observation's integral is leaky (∫ e exp(−(t−s)/T) ds): close to ∫ e over times below T
+        i_term = ki * integral
+        tau = kp * error + kd * rate_error + jnp.concatenate([i_term[:3], jnp.zeros(2), i_term[3:]])
+        wrench = tau + _feedforward(h, up, v_ref)
+        return jnp.clip(h.throttle(alloc_pinv @ wrench), -1.0, 1.0), carry
 
     return Controller(init=lambda key: (), act=act)
 
 
-TUNING_BANDWIDTHS = (1.0, 2.0, 3.0, 4.0, 6.0)  # rad/s, translation; rotation twice as fast
+@dataclasses.dataclass(frozen=True)
+class LQRConfig:
+    """Bryson's rule: each state and input costs (value / its scale)^2. Only `position_scale` is tuned."""
+
+    position_scale: float = 0.05  # m (and m s for the position integral)
+    attitude_scale: float = 0.1  # rad (roll, pitch, heading; rad s for its integral)
+    velocity_scale: float = 0.5  # m/s
+    angular_velocity_scale: float = 1.0  # rad/s
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if not (np.isfinite(value) and value > 0):
+                raise UserError(f"LQR '{f.name}' must be finite and > 0, got {value!r}")
+
+
+def lqr_gain(env: MarineEnv, config: LQRConfig = LQRConfig()) -> np.ndarray:
+    """K (N, 16): thrusts f = f_ff − K x for x = [−error (6), −rate error (6), −integral (4)] (see
+    `_read`), from the discrete Riccati equation of the hover model at the control period.
+
+    Model (body frame, small angles, level hover): position and attitude rates are the body
+    velocities; M ν̇ = −D ν + S [φ, θ] + B f, with S the restoring stiffness of weight and buoyancy and
+    B the allocation matrix (thrusts as inputs, so the 6-thruster BlueROV2's missing pitch authority
+    is in the model); the integral states follow the observation's leaky integral, İ = e − I/T.
+    Discretised with a zero-order hold over control_dt; the thruster lag is left out.
+    """
+    import scipy.linalg
+
+    h = _hover(env)
+    n_u = h.allocation.shape[1]
+    a = np.zeros((16, 16))
+    a[0:6, 6:12] = np.eye(6)  # pose rates = velocities
+    stiffness = np.zeros((6, 3))  # d(restoring wrench)/d(roll, pitch, yaw) at level
+    stiffness[0, 1], stiffness[1, 0] = -h.net_up, h.net_up  # up ≈ (−θ, φ, 1)
+    bx, by, bz = h.cob
+    stiffness[3, 0], stiffness[4, 1] = -h.buoyancy * bz, -h.buoyancy * bz
+    stiffness[5, 0], stiffness[5, 1] = h.buoyancy * bx, h.buoyancy * by
+    a[6:12, 3:6] = stiffness / h.mass[:, None]
+    a[6:12, 6:12] = -np.diag(h.damping / h.mass)
+    leak = 1.0 / env.config.integral_time_constant if env.config.integral_time_constant > 0 else 0.0
+    a[12:15, 0:3] = np.eye(3)
+    a[15, 5] = 1.0
+    a[12:16, 12:16] = -leak * np.eye(4)
+    b = np.zeros((16, n_u))
+    b[6:12] = h.allocation / h.mass[:, None]
+    dt = env.config.control_dt
+    block = scipy.linalg.expm(np.block([[a, b], [np.zeros((n_u, 16 + n_u))]]) * dt)
+    ad, bd = block[:16, :16], block[:16, 16:]
+    c = config
+    scales = np.array([c.position_scale] * 3 + [c.attitude_scale] * 3 + [c.velocity_scale] * 3
+                      + [c.angular_velocity_scale] * 3 + [c.position_scale] * 3 + [c.attitude_scale])
+    if leak == 0:
+        scales[12:] = np.inf  # no integral in the observation: do not weigh (nor use) it
+    q = np.diag(1.0 / scales**2)
+    r = np.eye(n_u) / h.max_thrust**2
+    p = scipy.linalg.solve_discrete_are(ad, bd, q, r)
+    return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
+
+
+def lqr_controller(env: MarineEnv, config: LQRConfig = LQRConfig()) -> Controller:
+    """LQI on the hover model (`lqr_gain`) with the feedforward of the PID, reading the observation."""
+    h = _hover(env)
+    k = jnp.asarray(lqr_gain(env, config), jnp.float32)
+    alloc_pinv = jnp.asarray(np.linalg.pinv(h.allocation), jnp.float32)
+
+    def act(carry, obs, info):
+        error, rate_error, integral, up, v_ref = _read(h, obs)
+        x = -jnp.concatenate([error, rate_error, integral])
+        thrust = alloc_pinv @ _feedforward(h, up, v_ref) - k @ x
+        return jnp.clip(h.throttle(thrust), -1.0, 1.0), carry
+
+    return Controller(init=lambda key: (), act=act)
+
+
+# Tuning grids: one scalar per controller, the rest follows from the model (module docstring).
+TUNING_GRIDS = {
+    "pid": ("translation bandwidth (rad/s; rotation twice)", (1.0, 2.0, 3.0, 4.0, 6.0),
+            lambda w: PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w), pid_controller),
+    "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_controller),
+}
 TUNING_SEED = 1  # episodes for tuning; `marinejax eval` evaluates on another seed (12345)
+CONTROLLERS = tuple(TUNING_GRIDS)
 
 
-def tune_pid(env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED,
-             bandwidths: tuple[float, ...] = TUNING_BANDWIDTHS, progress=None) -> tuple[PIDConfig, dict[float, float]]:
-    """The PIDConfig of the grid `bandwidths` with the lowest mean window error (the task's evaluation
-    statistic) over `episodes` episodes of `env` from `seed`; returns it and every candidate's error (m)."""
+def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED, progress=None):
+    """The config of controller `name` whose grid value gives the lowest mean window error (the task's
+    evaluation statistic) over `episodes` episodes of `env` from `seed`; returns (config, {value: error (m)})."""
     from marinejax.train.statistics import rollout_controller, summarize
 
+    if name not in TUNING_GRIDS:
+        raise UserError(f"unknown controller {name!r}; valid: {list(CONTROLLERS)}")
+    label, grid, make_config, make = TUNING_GRIDS[name]
     errors = {}
-    for w in bandwidths:
-        config = PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w)
-        stats = summarize(env, rollout_controller(env, pid_controller(env, config), episodes, seed))
-        errors[w] = stats["position_error_mean_m"]
+    for value in grid:
+        stats = summarize(env, rollout_controller(env, make(env, make_config(value)), episodes, seed))
+        errors[value] = stats["position_error_mean_m"]
         if progress is not None:
-            progress(f"PID tuning: bandwidth {w:g} rad/s (rotation {2 * w:g}): mean error {errors[w]:.4f} m")
-    best = min(errors, key=errors.get)
-    return PIDConfig(translation_bandwidth=best, rotation_bandwidth=2 * best), errors
-
-
-CONTROLLERS = ("pid",)
+            progress(f"{name.upper()} tuning: {label} {value:g}: mean error {errors[value]:.4f} m")
+    return make_config(min(errors, key=errors.get)), errors
 
 
 def make_controller(name: str, env: MarineEnv, progress=None) -> tuple[Controller, dict]:
     """A classical controller by name (`CONTROLLERS`), tuned for `env`; returns it and a description
-    (gains and tuning results) for reports."""
-    if name not in CONTROLLERS:
-        raise UserError(f"unknown controller {name!r}; valid: {list(CONTROLLERS)}")
-    config, errors = tune_pid(env, progress=progress)
-    gains = pid_gains(env, config)
+    (settings, gains and tuning results) for reports."""
+    config, errors = tune(name, env, progress=progress)
     info = {"controller": name, "config": dataclasses.asdict(config),
-            "gains": {k: np.round(getattr(gains, k), 3).tolist() for k in ("kp", "kd", "ki")},
-            "tuning": {"seed": TUNING_SEED, "mean_error_m_by_bandwidth": {str(k): v for k, v in errors.items()}}}
-    return pid_controller(env, config), info
+            "tuning": {"seed": TUNING_SEED, "parameter": TUNING_GRIDS[name][0],
+                       "mean_error_m": {str(k): v for k, v in errors.items()}}}
+    if name == "pid":
+        gains = pid_gains(env, config)
+        info["gains"] = {k: np.round(getattr(gains, k), 3).tolist() for k in ("kp", "kd", "ki")}
+    return TUNING_GRIDS[name][3](env, config), info

@@ -49,18 +49,22 @@ def test_tuned_station_keeping_recipe_lands_on_held_out_seeds(seed, tmp_path):
 
 
 @pytest.mark.slow
-def test_disturbance_trained_policy_beats_the_nominal_one_under_disturbance(tmp_path):
-    """Both shipped station-keeping policies on the same 64 disturbed episodes (new physics, OU current,
-    constant force and torque each): the one trained under disturbance holds station clearly better."""
+@pytest.mark.parametrize("vehicle, mean_ratio, p95_ratio", [("BlueROV2Heavy", 0.5, 1.0), ("BlueROV2", 0.8, 0.6)])
+def test_disturbance_trained_policy_beats_the_nominal_one_under_disturbance(vehicle, mean_ratio, p95_ratio, tmp_path):
+    """Both shipped station-keeping policies of a vehicle on the same 64 disturbed episodes (new physics,
+    OU current, constant force and torque each): the one trained under disturbance holds station
+    better. For the BlueROV2 (no pitch control) the gain is in the tail: nominal policy 35 / 21 / 92 mm
+    mean / median / p95, disturbance policy 24 / 20 / 48 mm."""
     disturbed = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
-    nominal = evaluate_run("BlueROV2Heavy-StationKeeping", out_dir=tmp_path / "n", env_overrides=disturbed, video=False)
-    robust = evaluate_run("BlueROV2Heavy-StationKeepingDisturbed", out_dir=tmp_path / "d", video=False)
+    nominal = evaluate_run(f"{vehicle}-StationKeeping", out_dir=tmp_path / "n", env_overrides=disturbed, video=False)
+    robust = evaluate_run(f"{vehicle}-StationKeepingDisturbed", out_dir=tmp_path / "d", video=False)
     assert robust["env_overrides"] == {} and nominal["seed"] == robust["seed"]
     assert robust["position_error_median_m"] <= 0.03 and robust["position_error_p95_m"] <= 0.06
-    assert robust["position_error_mean_m"] < 0.5 * nominal["position_error_mean_m"], (robust, nominal)
+    assert robust["position_error_mean_m"] < mean_ratio * nominal["position_error_mean_m"], (robust, nominal)
+    assert robust["position_error_p95_m"] < p95_ratio * nominal["position_error_p95_m"], (robust, nominal)
 
 
 def test_every_task_of_both_vehicles_has_a_shipped_policy():
     tasks = ["StationKeeping", "CircleTracking", "HelixTracking", "LemniscateTracking"]
-    expected = {f"{v}-{t}" for v in ("BlueROV2", "BlueROV2Heavy") for t in tasks} | {"BlueROV2Heavy-StationKeepingDisturbed"}
+    expected = {f"{v}-{t}" for v in ("BlueROV2", "BlueROV2Heavy") for t in tasks} | {f"{v}-StationKeepingDisturbed" for v in ("BlueROV2", "BlueROV2Heavy")}
     assert expected <= set(shipped_policies())
