@@ -19,13 +19,20 @@ from marinejax.envs.registry import (
     register_with_brax,
 )
 from marinejax.envs.station_keeping import StationKeeping
-from marinejax.envs.tracking import Tracking
+from marinejax.envs.tracking import TrackingConfig, Tracking
+from marinejax.envs.trajectories import TrajectoryConfig
 from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
 register_task("CircleTracking", Tracking, kind="circle")
 register_task("HelixTracking", Tracking, kind="helix")
 register_task("LemniscateTracking", Tracking, kind="lemniscate")
+# Fast variants at 0.6-0.8 m/s, near the vehicles' top speed: the Munk moment pitches the vehicle and
+# thrusters saturate, where controllers differ (the 0.2-0.5 m/s defaults are easy for all of them).
+_FAST = TrackingConfig(trajectory=TrajectoryConfig(speed=(0.6, 0.8)))
+register_task("CircleTrackingFast", Tracking, config=_FAST, kind="circle")
+register_task("HelixTrackingFast", Tracking, config=_FAST, kind="helix")
+register_task("LemniscateTrackingFast", Tracking, config=_FAST, kind="lemniscate")
 
 __all__ = [
     "CurrentConfig",

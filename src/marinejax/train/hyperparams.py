@@ -81,6 +81,7 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "HelixTracking": (_TRACKING, {}),
     "LemniscateTracking": (_TRACKING, {}),
 }
+_TUNED.update({f"{task}Fast": _TUNED[task] for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.items())})
 # Per env, where a vehicle needs its own recipe. The 6-thruster BlueROV2 cannot make a pitch moment:
 # under the disturbance torque it pitches (median 29°), and with the shared recipe its error was a
