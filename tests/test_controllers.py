@@ -38,7 +38,7 @@ def test_gains_place_a_triple_pole_at_minus_the_bandwidth(heavy):
 
 
 def test_inverse_thrust_inverts_the_t200_curve(heavy):
-    throttle = inverse_thrust(heavy)
+    throttle = inverse_thrust(heavy.plant)
     p = heavy.plant.nominal_params()
     forces = jnp.linspace(-30.0, 35.0, 27)
     u = throttle(jnp.broadcast_to(forces[:, None], (27, heavy.vehicle.num_thrusters)))

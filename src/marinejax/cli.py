@@ -207,6 +207,49 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _excite(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from marinejax.identify import Log, excitation, write_log
+    from marinejax.plant import Plant, PlantConfig
+
+    plant = Plant(args.vehicle, PlantConfig())
+    commands = excitation(plant, args.duration, args.amplitude, args.seed)
+    path = write_log(args.out, Log(time=plant.config.control_dt * np.arange(len(commands)), commands=commands))
+    print(f"wrote {path}: {len(commands)} commands at {1 / plant.config.control_dt:g} Hz for {args.vehicle} "
+          f"({plant.vehicle.num_thrusters} thrusters, throttles in [-1, 1]); run them, log the state columns, then `marinejax identify`")
+    return 0
+
+
+def _identify(args: argparse.Namespace) -> int:
+    from marinejax.identify import Identifier, plot_fit, read_log, save_param_set
+    from marinejax.plant import Plant, PlantConfig
+
+    from marinejax.errors import MissingFileError
+    from marinejax.vehicle import list_vehicles
+
+    if not Path(args.log).is_file():  # checked before anything compiles
+        raise MissingFileError(f"log file not found: {args.log}")
+    if args.vehicle not in list_vehicles():
+        raise UserError(f"unknown vehicle {args.vehicle!r}; available vehicles: {list_vehicles()}")
+    plant = Plant(args.vehicle, PlantConfig())
+    log = read_log(args.log, plant.vehicle.num_thrusters)
+    ident = Identifier(plant, log, args.window, fit_thruster_gain=args.fit_thruster_gain)
+    print(f"{args.log}: {len(log.time)} rows, {len(log.time) * log.dt:.0f} s, {ident.start.velocity.shape[0]} windows of {ident.steps} steps; "
+          "fitting (the first iteration compiles) ...")
+    result = ident.fit(progress=print)
+    print(f"cost (mean squared residual / noise^2): {result.cost_before:.4g} -> {result.cost_after:.4g} in {result.seconds:.0f} s")
+    print(f"{'parameter':24s} {'default':>10s} {'fitted':>10s} {'std':>9s}")
+    for name, x0, v, sd, det, fit in zip(result.names, result.initial, result.values, result.std, result.determined, result.fitted):
+        note = "held (not fitted)" if not fit else ("" if det else "not determined by this log")
+        print(f"{name:24s} {x0:10.4g} {v:10.4g} {sd:9.2g}  {note}")
+    out = Path(args.out) if args.out else Path(args.log).with_name(Path(args.log).stem + "-params.json")
+    save_param_set(out, args.vehicle, result, source=f"identified from {Path(args.log).name} by marinejax identify")
+    plot = plot_fit(ident, result, out.with_suffix(".png"))
+    print(f"wrote {out} (use: marinejax train ENV --env param_set={out}) and {plot} (logged vs simulated, before and after)")
+    return 0
+
+
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     if args.what == "physics":
         from marinejax.benchmarks.physics import main as bench_main
@@ -271,6 +314,20 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--out", help="output file (default ./<env>-policy.<format>)")
     ex.add_argument("--checkpoint", choices=["best", "latest"], default="best", help="for a run directory: which checkpoint")
 
+    exc = sub.add_parser("excite", parents=[common], help="write an excitation command sequence (CSV log format) to run on a vehicle for identification")
+    exc.add_argument("vehicle", help="vehicle name (see marinejax.list_vehicles())")
+    exc.add_argument("--out", required=True, help="CSV file to write (time_s, u1..uN)")
+    exc.add_argument("--duration", type=float, default=120.0, help="seconds (default 120)")
+    exc.add_argument("--amplitude", type=float, default=0.5, help="fraction of full thrust per thruster, in (0, 1] (default 0.5)")
+    exc.add_argument("--seed", type=int, default=0)
+
+    idf = sub.add_parser("identify", parents=[common], help="fit a vehicle's fluid and thruster parameters to a logged run")
+    idf.add_argument("log", help="CSV log (see marinejax.identify for the columns)")
+    idf.add_argument("--vehicle", required=True, help="vehicle name whose parameters are the starting point")
+    idf.add_argument("--out", default=None, help="parameter-set JSON to write (default <log>-params.json), usable as --env param_set=PATH")
+    idf.add_argument("--window", type=float, default=1.0, help="seconds per multiple-shooting window (default 1)")
+    idf.add_argument("--fit-thruster-gain", action="store_true", help="also fit the thruster gain (not separable from the masses; see the docs)")
+
     bench = sub.add_parser("bench", add_help=False, parents=[common],
                            help="benchmarks: `marinejax bench physics|envs|training|clients [flags]` (-h for their flags)")
     bench.add_argument("what", choices=["physics", "envs", "training", "clients"])
@@ -294,6 +351,10 @@ def main(argv: list[str] | None = None) -> int:
             return _validate(args)
         if args.command == "export":
             return _export(args)
+        if args.command == "excite":
+            return _excite(args)
+        if args.command == "identify":
+            return _identify(args)
         return _bench(args, rest)
     except UserError as err:  # anything else is a bug: let its traceback show
         print(f"marinejax {args.command}: error: {err}", file=sys.stderr)

@@ -37,7 +37,8 @@ import numpy as np
 from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
-from marinejax.thrusters import t200_thrust
+from marinejax.plant import Plant
+from marinejax.thrusters import inverse_t200, t200_thrust
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,24 +74,13 @@ def pid_gains(env: MarineEnv, config: PIDConfig = PIDConfig()) -> PIDGains:
     return PIDGains(kp=kp, kd=kd, ki=ki)
 
 
-def inverse_thrust(env: MarineEnv, samples: int = 801):
-    """throttle(thrust): the inverse of each thruster's steady T200 curve at the nominal voltage and
-    gain (thrust in N along the thruster axis → throttle in [−1, 1]; beyond the curve: ±1)."""
-    p = env.plant.nominal_params()
-    u = np.linspace(-1.0, 1.0, samples)
-    f = np.asarray(t200_thrust(env.vehicle.sys.thrusters.curve, jnp.asarray(u), p.voltage))
-    keep = np.abs(f) > 1e-6  # drop the dead band, where thrust is zero for a range of throttles
-    f_grid = np.concatenate([f[keep & (u < 0)], [0.0], f[keep & (u > 0)]])
-    u_grid = np.concatenate([u[keep & (u < 0)], [0.0], u[keep & (u > 0)]])
-    if np.any(np.diff(f_grid) <= 0):
-        raise UserError("the thruster curve is not monotonic; it cannot be inverted")
-    f_grid, u_grid = jnp.asarray(f_grid), jnp.asarray(u_grid)
+def inverse_thrust(plant: Plant):
+    """throttle(thrust): the inverse of each thruster's steady T200 curve at the plant's nominal voltage
+    and gains (thrust in N along the thruster axis → throttle in [−1, 1]; beyond the curve: ±1)."""
+    p = plant.nominal_params()
+    inverse = inverse_t200(plant.vehicle.sys.thrusters.curve, float(p.voltage))
     gain = jnp.asarray(p.thruster_gain)
-
-    def throttle(thrust: jax.Array) -> jax.Array:
-        return jnp.interp(thrust / gain, f_grid, u_grid, left=-1.0, right=1.0)
-
-    return throttle
+    return lambda thrust: inverse(thrust / gain)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,7 +112,7 @@ def _hover(env: MarineEnv) -> _Hover:
         damping=np.asarray(p.hydro.linear_damping, float), quadratic=np.asarray(p.hydro.quadratic_damping, float),
         net_up=float(p.net_buoyancy(g)), buoyancy=float(p.hydro.fluid_density * p.hydro.volume * g),
         cob=np.asarray(p.hydro.center_of_buoyancy, float), allocation=np.asarray(env.vehicle.sys.thrusters.allocation, float),
-        throttle=inverse_thrust(env), max_thrust=float(np.min(np.abs(full))),
+        throttle=inverse_thrust(env.plant), max_thrust=float(np.min(np.abs(full))),
     )
 
 

@@ -83,6 +83,21 @@ def t200_thrust(curve: T200Curve, command: jnp.ndarray, voltage: jnp.ndarray) ->
     return lo * (1 - fv) + hi * fv
 
 
+def inverse_t200(curve: T200Curve, voltage: float, samples: int = 801):
+    """throttle(thrust): the inverse of the steady T200 curve at supply `voltage` (V); thrust in N
+    along the thruster axis, throttle in [−1, 1] (±1 beyond the curve, 0 for zero thrust: the dead
+    band is skipped). Built once on the host; the returned function is pure JAX."""
+    u = np.linspace(-1.0, 1.0, samples)
+    f = np.asarray(t200_thrust(curve, jnp.asarray(u), jnp.asarray(voltage)))
+    keep = np.abs(f) > 1e-6
+    f_grid = np.concatenate([f[keep & (u < 0)], [0.0], f[keep & (u > 0)]])
+    u_grid = np.concatenate([u[keep & (u < 0)], [0.0], u[keep & (u > 0)]])
+    if np.any(np.diff(f_grid) <= 0):
+        raise UserError("the thruster curve is not monotonic; it cannot be inverted")
+    f_grid, u_grid = jnp.asarray(f_grid), jnp.asarray(u_grid)
+    return lambda thrust: jnp.interp(thrust, f_grid, u_grid, left=-1.0, right=1.0)
+
+
 def lag_step(thrust: jnp.ndarray, target: jnp.ndarray, dt: float, time_constant: jnp.ndarray) -> jnp.ndarray:
     """Exact first-order lag over dt (s): thrust → target with time constant τ (s); τ = 0 is instantaneous."""
     alpha = 1.0 - jnp.exp(-dt / jnp.maximum(time_constant, 1e-9))

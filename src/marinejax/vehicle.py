@@ -128,9 +128,33 @@ def _param_sets(m: mujoco.MjModel) -> list[str]:
     return sorted(sets)
 
 
+_FILE_FIELDS = ("added_mass", "linear_damping", "quadratic_damping", "volume", "fluid_density", "center_of_buoyancy", "mass", "inertia")
+
+
+def _read_param_file(path: Path, vehicle: str) -> tuple[dict[str, np.ndarray], dict[str, float], str]:
+    """A parameter-set JSON file: {vehicle, source, <fields of a set>, thruster_gain, thruster_time_constant}."""
+    import json
+
+    if not path.is_file():
+        raise MissingFileError(f"parameter-set file not found: {path}")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as err:
+        raise UserError(f"{path}: not valid JSON ({err})") from None
+    if data.get("vehicle") not in (None, vehicle):
+        raise UserError(f"{path} holds parameters of vehicle {data.get('vehicle')!r}, not {vehicle!r}")
+    values = {k: np.atleast_1d(np.asarray(data[k], dtype=np.float64)) for k in _FILE_FIELDS if k in data}
+    thrusters = {k: float(data[k]) for k in ("thruster_gain", "thruster_time_constant") if k in data}
+    for k, v in thrusters.items():
+        if not (np.isfinite(v) and v >= 0):
+            raise UserError(f"{path}: '{k}' must be finite and >= 0, got {v}")
+    return values, thrusters, data.get("source", str(path))
+
+
 def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     """Load a vehicle by name (see `list_vehicles()`) or from an MJCF file path ending in .xml,
-    with its default or a named parameter set.
+    with its default or a named parameter set, or a parameter-set .json file (fields of a set plus
+    thruster_gain and thruster_time_constant; `marinejax identify` writes one).
 
     Raises UserError (a ValueError) naming the bad value and the valid choices for an unknown vehicle or
     parameter set, and for missing, non-finite or unphysical parameters.
@@ -151,9 +175,15 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     sets = _param_sets(m)
     default = _text(m, _PREFIX + "default_set")
     param_set = param_set or default
-    if param_set not in sets:
-        raise UserError(f"{where}: unknown parameter set {param_set!r}; available: {sets}")
-    values = _numerics(m, f"{_PREFIX}{param_set}:")
+    file_values, thruster_file = {}, {}
+    source = None
+    if str(param_set).endswith(".json"):  # a parameter-set file, e.g. written by `marinejax identify`
+        file_values, thruster_file, source = _read_param_file(Path(param_set), name)
+        values = {**_numerics(m, f"{_PREFIX}{default}:"), **file_values}
+    elif param_set not in sets:
+        raise UserError(f"{where}: unknown parameter set {param_set!r}; available: {sets} or a parameter-set .json file")
+    else:
+        values = _numerics(m, f"{_PREFIX}{param_set}:")
     rigid = {k: values.pop(k) for k in list(values) if k in _RIGID_FIELDS}
     hydro = HydroParams.from_mapping(values, source=f"{where}, parameter set {param_set!r}")
 
@@ -205,8 +235,8 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     thrusters = ThrusterParams(
         allocation=jnp.asarray(allocation_matrix(positions, np.array(directions))),
         curve=t200_curve(),
-        gain=jnp.ones(len(ids)),
-        time_constant=jnp.asarray(tc),
+        gain=jnp.full(len(ids), thruster_file.get("thruster_gain", 1.0)),
+        time_constant=jnp.asarray(thruster_file.get("thruster_time_constant", tc)),
         voltage=jnp.asarray(volt),
     )
     sys = VehicleSystem(
@@ -221,7 +251,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         name=name,
         param_set=param_set,
         param_sets=tuple(sets),
-        source=_text(m, f"{_PREFIX}{param_set}:source") or "",
+        source=source or _text(m, f"{_PREFIX}{param_set}:source") or "",
         mj_model=m,
         sys=sys,
         thruster_names=tuple(f"thruster{k}" for k in sorted(sites)),
