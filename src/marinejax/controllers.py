@@ -141,12 +141,14 @@ def _feedforward(h: _Hover, up: jax.Array, v_ref: jax.Array) -> jax.Array:
     return jnp.concatenate([drag, jnp.zeros(3)]) - restoring
 
 
-def pid_controller(env: MarineEnv, config: PIDConfig = PIDConfig()) -> Controller:
-    """The PID of the module docstring on `env` (thruster action mode), reading its observation."""
-    h = _hover(env)
-    gains = pid_gains(env, config)
-    kp, kd = jnp.asarray(gains.kp, jnp.float32), jnp.asarray(gains.kd, jnp.float32)
-    ki = jnp.asarray(gains.ki[[0, 1, 2, 5]], jnp.float32)
+def _pid_design(env: MarineEnv, config: PIDConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    g = pid_gains(env, config)
+    return g.kp, g.kd, g.ki[[0, 1, 2, 5]]
+
+
+def _pid_law(h: _Hover, gains) -> Controller:
+    """The PID control law with gains (kp (6,), kd (6,), ki (4,)): NumPy or traced JAX arrays."""
+    kp, kd, ki = (jnp.asarray(g, jnp.float32) for g in gains)
     alloc_pinv = jnp.asarray(np.linalg.pinv(h.allocation), jnp.float32)
 
     def act(carry, obs, info):
@@ -158,6 +160,11 @@ def pid_controller(env: MarineEnv, config: PIDConfig = PIDConfig()) -> Controlle
         return jnp.clip(h.throttle(alloc_pinv @ wrench), -1.0, 1.0), carry
 
     return Controller(init=lambda key: (), act=act)
+
+
+def pid_controller(env: MarineEnv, config: PIDConfig = PIDConfig()) -> Controller:
+    """The PID of the module docstring on `env` (thruster action mode), reading its observation."""
+    return _pid_law(_hover(env), _pid_design(env, config))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -219,10 +226,9 @@ def lqr_gain(env: MarineEnv, config: LQRConfig = LQRConfig()) -> np.ndarray:
     return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
 
 
-def lqr_controller(env: MarineEnv, config: LQRConfig = LQRConfig()) -> Controller:
-    """LQI on the hover model (`lqr_gain`) with the feedforward of the PID, reading the observation."""
-    h = _hover(env)
-    k = jnp.asarray(lqr_gain(env, config), jnp.float32)
+def _lqr_law(h: _Hover, k) -> Controller:
+    """The LQI control law with gain k (N, 16): NumPy or a traced JAX array."""
+    k = jnp.asarray(k, jnp.float32)
     alloc_pinv = jnp.asarray(np.linalg.pinv(h.allocation), jnp.float32)
 
     def act(carry, obs, info):
@@ -234,11 +240,17 @@ def lqr_controller(env: MarineEnv, config: LQRConfig = LQRConfig()) -> Controlle
     return Controller(init=lambda key: (), act=act)
 
 
+def lqr_controller(env: MarineEnv, config: LQRConfig = LQRConfig()) -> Controller:
+    """LQI on the hover model (`lqr_gain`) with the feedforward of the PID, reading the observation."""
+    return _lqr_law(_hover(env), lqr_gain(env, config))
+
+
 # Tuning grids: one scalar per controller, the rest follows from the model (module docstring).
+# name: (what the scalar is, grid, config of a value, design: (env, config) -> gains, law: (hover, gains) -> Controller)
 TUNING_GRIDS = {
     "pid": ("translation bandwidth (rad/s; rotation twice)", (1.0, 2.0, 3.0, 4.0, 6.0),
-            lambda w: PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w), pid_controller),
-    "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_controller),
+            lambda w: PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w), _pid_design, _pid_law),
+    "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_gain, _lqr_law),
 }
 TUNING_SEED = 1  # episodes for tuning; `marinejax eval` evaluates on another seed (12345)
 CONTROLLERS = tuple(TUNING_GRIDS)
@@ -246,15 +258,33 @@ CONTROLLERS = tuple(TUNING_GRIDS)
 
 def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED, progress=None):
     """The config of controller `name` whose grid value gives the lowest mean window error (the task's
-    evaluation statistic) over `episodes` episodes of `env` from `seed`; returns (config, {value: error (m)})."""
-    from marinejax.train.statistics import rollout_controller, summarize
+    evaluation statistic) over `episodes` episodes of `env` from `seed`; returns (config, {value: error (m)}).
+    Every grid value runs in one jitted call (the gains are traced), so tuning compiles once."""
+    from marinejax.control import run_steps
+    from marinejax.train.statistics import summarize
 
     if name not in TUNING_GRIDS:
         raise UserError(f"unknown controller {name!r}; valid: {list(CONTROLLERS)}")
-    label, grid, make_config, make = TUNING_GRIDS[name]
+    label, grid, make_config, design, law = TUNING_GRIDS[name]
+    h = _hover(env)
+    stacked = jax.tree.map(lambda *g: jnp.stack([jnp.asarray(x, jnp.float32) for x in g]),
+                           *[design(env, make_config(v)) for v in grid])
+    steps = env.config.episode_length
+
+    def episode(key, gains):
+        controller = law(h, gains)
+        state = env.reset(key)
+        _, _, recorded = run_steps(env, controller, state, controller.init(key), steps,
+                                   lambda s: (s.metrics["position_error"], s.done, s.metrics["heading_error_deg"]))
+        return recorded
+
+    keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
+    err, done, heading = jax.jit(jax.vmap(jax.vmap(episode, (0, None)), (None, 0)))(keys, stacked)
+    time = env.config.control_dt * np.arange(1, steps + 1)
     errors = {}
-    for value in grid:
-        stats = summarize(env, rollout_controller(env, make(env, make_config(value)), episodes, seed))
+    for i, value in enumerate(grid):
+        stats = summarize(env, {"time": time, "error": np.asarray(err[i], float), "done": np.asarray(done[i], float),
+                                "heading_error_deg": np.asarray(heading[i], float)})
         errors[value] = stats["position_error_mean_m"]
         if progress is not None:
             progress(f"{name.upper()} tuning: {label} {value:g}: mean error {errors[value]:.4f} m")
@@ -271,4 +301,4 @@ def make_controller(name: str, env: MarineEnv, progress=None) -> tuple[Controlle
     if name == "pid":
         gains = pid_gains(env, config)
         info["gains"] = {k: np.round(getattr(gains, k), 3).tolist() for k in ("kp", "kd", "ki")}
-    return TUNING_GRIDS[name][3](env, config), info
+    return TUNING_GRIDS[name][4](_hover(env), TUNING_GRIDS[name][3](env, config)), info
