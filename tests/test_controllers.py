@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import marinejax
-from marinejax.controllers import LQRConfig, PIDConfig, inverse_thrust, lqr_controller, lqr_gain, pid_controller, pid_gains
+from marinejax.controllers import LQRConfig, PIDConfig, hover_model, inverse_thrust, lqr_controller, lqr_gain, pid_controller, pid_gains
 from marinejax.errors import UserError
 from marinejax.thrusters import t200_thrust
 from marinejax.train.statistics import rollout_controller, summarize
@@ -55,6 +55,9 @@ def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
         env = marinejax.make(f"{vehicle}-StationKeeping")
         k = lqr_gain(env, LQRConfig())
         assert k.shape == (n, 16) and np.all(np.isfinite(k))
+        ad, bd = hover_model(env)
+        assert np.abs(np.linalg.eigvals(ad - bd @ k)).max() < 1.0  # stable closed loop
+        assert np.abs(np.linalg.eigvals(ad)).max() >= 1.0 - 1e-9  # the open loop is not (integrators, free position)
         alloc = np.asarray(env.vehicle.sys.thrusters.allocation)
         pitch_moment = alloc[4] @ k  # pitch moment the feedback commands per unit of each state
         if vehicle == "BlueROV2":
@@ -63,11 +66,15 @@ def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
             assert pitch_moment[4] > 1.0  # N m per rad of pitch
 
 
+# Each controller holds station and tracks a slow circle (0.2-0.5 m/s) on the nonlinear simulator;
+# the bounds are about twice what they reach (README), on other episodes than the tuning's.
 @pytest.mark.parametrize("env_name, controller, median_below", [
     ("BlueROV2Heavy-StationKeeping", pid_controller, 0.002),
-    ("BlueROV2-StationKeepingDisturbed", pid_controller, 0.015),
+    pytest.param("BlueROV2Heavy-StationKeeping", lqr_controller, 0.002, marks=pytest.mark.slow),
+    pytest.param("BlueROV2-CircleTracking", pid_controller, 0.01, marks=pytest.mark.slow),
     ("BlueROV2Heavy-CircleTracking", lqr_controller, 0.01),
-    ("BlueROV2-StationKeepingDisturbed", lqr_controller, 0.01),
+    pytest.param("BlueROV2-StationKeepingDisturbed", pid_controller, 0.015, marks=pytest.mark.slow),
+    pytest.param("BlueROV2-StationKeepingDisturbed", lqr_controller, 0.01, marks=pytest.mark.slow),
 ])
 def test_controllers_reach_the_target_on_the_evaluation_statistic(env_name, controller, median_below):
     env = marinejax.make(env_name)

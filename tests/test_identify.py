@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -39,6 +40,7 @@ def fit():
     return plant, true, result
 
 
+@pytest.mark.slow
 def test_fit_recovers_the_well_excited_parameters_within_5_percent(fit):
     plant, true, result = fit
     truth = _flatten(true)
@@ -56,6 +58,19 @@ def test_fit_recovers_the_well_excited_parameters_within_5_percent(fit):
     assert result.cost_after < 0.05 * result.cost_before
 
 
+@pytest.mark.slow
+def test_noiseless_log_gives_the_parameters_almost_exactly():
+    plant = Plant("bluerov2", PlantConfig())
+    true = perturbed(plant, seed=5)
+    log = simulate_log(plant, true, excitation(plant, duration=60.0, seed=2), noise=False)
+    result = Identifier(plant, log).fit()
+    truth = _flatten(true)
+    scale = np.maximum(np.abs(truth), 1e-3)
+    np.testing.assert_allclose(result.values / scale, truth / scale, atol=2e-3)
+    assert result.cost_after < 1e-6 * result.cost_before
+
+
+@pytest.mark.slow
 def test_fitted_model_predicts_a_fresh_manoeuvre_ten_times_better(fit):
     plant, true, result = fit
     fresh = simulate_log(plant, true, excitation(plant, duration=40.0, seed=7), seed=8, noise=False)
@@ -80,6 +95,15 @@ def test_log_round_trip_and_bad_logs(tmp_path):
         Identifier(plant, Log(time=log.time, commands=log.commands))
     with pytest.raises(UserError, match="amplitude"):
         excitation(plant, amplitude=1.5)
+    text = path.read_text().splitlines()
+    (tmp_path / "nan.csv").write_text("\n".join(text[:5] + [text[5].replace(text[5].split(",")[3], "nan", 1)] + text[6:]))
+    with pytest.raises(UserError, match="non-finite"):
+        read_log(tmp_path / "nan.csv", 6)
+    (tmp_path / "back.csv").write_text("\n".join([text[0], text[2], text[1]] + text[3:]))
+    with pytest.raises(UserError, match="time_s must increase"):
+        read_log(tmp_path / "back.csv", 6)
+    with pytest.raises(UserError, match="6 thruster columns"):
+        Identifier(Plant("bluerov2_heavy", PlantConfig()), log)
 
 
 @pytest.mark.slow
@@ -103,5 +127,7 @@ def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(t
     env = marinejax.make("BlueROV2Heavy-StationKeeping", param_set=str(tmp_path / "fitted.json"))
     np.testing.assert_allclose(np.asarray(env.plant.nominal_params().hydro.added_mass), data["added_mass"], rtol=1e-6)
     np.testing.assert_allclose(float(env.plant.nominal_params().time_constant), data["thruster_time_constant"], rtol=1e-6)
+    state = jax.jit(env.step)(jax.jit(env.reset)(jax.random.PRNGKey(0)), jnp.full(8, 0.3))  # it simulates
+    assert np.all(np.isfinite(np.asarray(state.obs)))
     bad = run("identify", "missing.csv", "--vehicle", "bluerov2_heavy")
     assert bad.returncode == 2 and "missing.csv" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1

@@ -183,16 +183,10 @@ class LQRConfig:
                 raise UserError(f"LQR '{f.name}' must be finite and > 0, got {value!r}")
 
 
-def lqr_gain(env: MarineEnv, config: LQRConfig = LQRConfig()) -> np.ndarray:
-    """K (N, 16): thrusts f = f_ff − K x for x = [−error (6), −rate error (6), −integral (4)] (see
-    `_read`), from the discrete Riccati equation of the hover model at the control period.
-
-    Model (body frame, small angles, level hover): position and attitude rates are the body
-    velocities; M ν̇ = −D ν + S [φ, θ] + B f, with S the restoring stiffness of weight and buoyancy and
-    B the allocation matrix (thrusts as inputs, so the 6-thruster BlueROV2's missing pitch authority
-    is in the model); the integral states follow the observation's leaky integral, İ = e − I/T.
-    Discretised with a zero-order hold over control_dt; the thruster lag is left out.
-    """
+def hover_model(env: MarineEnv) -> tuple[np.ndarray, np.ndarray]:
+    """(A_d (16, 16), B_d (16, N)): the hover model of `lqr_gain` discretised over control_dt, state
+    x = [pose deviation (position m, roll, pitch, yaw rad), velocity deviation (body, 6), integral (4)],
+    input the thrusts (N)."""
     import scipy.linalg
 
     h = _hover(env)
@@ -212,16 +206,31 @@ def lqr_gain(env: MarineEnv, config: LQRConfig = LQRConfig()) -> np.ndarray:
     a[12:16, 12:16] = -leak * np.eye(4)
     b = np.zeros((16, n_u))
     b[6:12] = h.allocation / h.mass[:, None]
-    dt = env.config.control_dt
-    block = scipy.linalg.expm(np.block([[a, b], [np.zeros((n_u, 16 + n_u))]]) * dt)
-    ad, bd = block[:16, :16], block[:16, 16:]
+    block = scipy.linalg.expm(np.block([[a, b], [np.zeros((n_u, 16 + n_u))]]) * env.config.control_dt)
+    return block[:16, :16], block[:16, 16:]
+
+
+def lqr_gain(env: MarineEnv, config: LQRConfig = LQRConfig()) -> np.ndarray:
+    """K (N, 16): thrusts f = f_ff − K x for x = [−error (6), −rate error (6), −integral (4)] (see
+    `_read`), from the discrete Riccati equation of the hover model (`hover_model`).
+
+    Model (body frame, small angles, level hover): position and attitude rates are the body
+    velocities; M ν̇ = −D ν + S [φ, θ] + B f, with S the restoring stiffness of weight and buoyancy and
+    B the allocation matrix (thrusts as inputs, so the 6-thruster BlueROV2's missing pitch authority
+    is in the model); the integral states follow the observation's leaky integral, İ = e − I/T.
+    Discretised with a zero-order hold over control_dt; the thruster lag is left out.
+    """
+    import scipy.linalg
+
+    h = _hover(env)
+    ad, bd = hover_model(env)
     c = config
     scales = np.array([c.position_scale] * 3 + [c.attitude_scale] * 3 + [c.velocity_scale] * 3
                       + [c.angular_velocity_scale] * 3 + [c.position_scale] * 3 + [c.attitude_scale])
-    if leak == 0:
+    if env.config.integral_time_constant == 0:
         scales[12:] = np.inf  # no integral in the observation: do not weigh (nor use) it
     q = np.diag(1.0 / scales**2)
-    r = np.eye(n_u) / h.max_thrust**2
+    r = np.eye(bd.shape[1]) / h.max_thrust**2
     p = scipy.linalg.solve_discrete_are(ad, bd, q, r)
     return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
 
