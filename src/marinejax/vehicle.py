@@ -56,6 +56,25 @@ def env_name_prefix(vehicle: str) -> str:
     return "".join(part[:1].upper() + part[1:] for part in vehicle.split("_"))
 
 
+def sensor_settings(vehicle: str) -> dict[str, float]:
+    """The vehicle's own sensor parameters: the MJCF's numerics `marinejax:sensors:<sensor>.<field>`
+    (e.g. `marinejax:sensors:dvl.rate_hz`), as overrides of the env config's `sensors` section, whose
+    defaults (`marinejax.plant.sensors`) are a BlueROV2's. Reads the XML only."""
+    import xml.etree.ElementTree as ElementTree
+
+    path = model_dir() / f"{vehicle}.xml"
+    prefix = _PREFIX + "sensors:"
+    out = {}
+    for numeric in ElementTree.parse(path).getroot().iter("numeric"):
+        name = numeric.get("name", "")
+        if name.startswith(prefix):
+            values = [float(v) for v in numeric.get("data", "").split()]
+            if len(values) != 1:
+                raise UserError(f"vehicle {vehicle!r} ({path.name}): '{name}' must hold one number, got {numeric.get('data')!r}")
+            out[name[len(prefix):]] = values[0]
+    return out
+
+
 @struct.dataclass
 class ThrusterParams:
     """Thruster model of a vehicle (pytree)."""

@@ -32,13 +32,17 @@ def test_a_new_mjcf_file_is_a_new_vehicle_with_all_tasks():
     """Adding a vehicle is one file: a copy of the BlueROV2 under a new name, nothing else."""
     stem = f"testrov_{uuid.uuid4().hex[:8]}"
     path = model_dir() / f"{stem}.xml"
-    text = (model_dir() / "bluerov2.xml").read_text().replace('data="BlueROV2"', 'data="TestRov"')
+    # with a sensor of its own: a 5 Hz DVL instead of the default 10 Hz
+    text = (model_dir() / "bluerov2.xml").read_text().replace('data="BlueROV2"', 'data="TestRov"').replace(
+        "<custom>", '<custom>\n    <numeric name="marinejax:sensors:dvl.rate_hz" data="5"/>')
     code = """
 import jax, marinejax
 names = [n for n in marinejax.list_envs() if n.startswith("TestRov-")]
 env = marinejax.make("TestRov-CircleTracking", episode_length=60)
 state = jax.jit(env.step)(jax.jit(env.reset)(jax.random.PRNGKey(0)), jax.numpy.zeros(env.action_size))
-print(len(names), env.vehicle.name, env.action_size, bool(jax.numpy.isfinite(state.obs).all()))
+same = len(names) == len([n for n in marinejax.list_envs() if n.startswith("BlueROV2-")])
+print(len(names) >= 8 and same, env.vehicle.name, env.action_size, bool(jax.numpy.isfinite(state.obs).all()),
+      env.config.sensors.dvl.rate_hz, marinejax.make("BlueROV2-CircleTracking").config.sensors.dvl.rate_hz)
 """
     try:
         path.write_text(text)
@@ -46,7 +50,8 @@ print(len(names), env.vehicle.name, env.action_size, bool(jax.numpy.isfinite(sta
     finally:
         path.unlink(missing_ok=True)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stdout.split() == ["8", stem, "6", "True"]
+    # every task (and variant) the BlueROV2 has; its own DVL rate, the default for the others
+    assert proc.stdout.split() == ["True", stem, "6", "True", "5.0", "10.0"]
 
 
 def test_register_environment_adds_a_named_variant():

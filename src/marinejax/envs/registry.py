@@ -21,7 +21,7 @@ from typing import Any, Callable
 from marinejax.config import apply_overrides
 from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.errors import UserError
-from marinejax.vehicle import env_name_prefix, list_vehicles
+from marinejax.vehicle import env_name_prefix, list_vehicles, sensor_settings
 
 DISTURBED = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
 
@@ -78,7 +78,7 @@ def register_environment(name: str, task: str, vehicle: str, config: EnvConfig |
     default = _TASKS[task].config
     if config is not None and type(config) is not type(default):
         raise UserError(f"task {task!r} takes a {type(default).__name__}, got {type(config).__name__}")
-    _CUSTOM_ENVS[name] = EnvSpec(name, task, vehicle, config if config is not None else default)
+    _CUSTOM_ENVS[name] = EnvSpec(name, task, vehicle, config if config is not None else _with_vehicle_sensors(default, vehicle))
 
 
 def _vehicle_prefixes() -> dict[str, str]:
@@ -99,7 +99,13 @@ def env_spec(name: str) -> EnvSpec:
     vehicle = _vehicle_prefixes().get(prefix)
     if vehicle is None or task not in _TASKS:
         raise UserError(f"unknown env {name!r}; registered envs: {list_envs()}")
-    return EnvSpec(name, task, vehicle, _TASKS[task].config)
+    return EnvSpec(name, task, vehicle, _with_vehicle_sensors(_TASKS[task].config, vehicle))
+
+
+def _with_vehicle_sensors(config: EnvConfig, vehicle: str) -> EnvConfig:
+    """The task's default config with the vehicle's own sensor parameters (its MJCF), if it has any."""
+    settings = sensor_settings(vehicle)
+    return apply_overrides(config, {"sensors": settings}) if settings else config
 
 
 def get_default_config(name: str) -> EnvConfig:

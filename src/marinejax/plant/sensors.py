@@ -17,6 +17,8 @@ Sensors slower than the control rate update every `round(1 / (rate_hz · control
 phase drawn per episode, and hold their value in between; sensors faster than it are sampled at
 the control rate (one sample per step, the datasheet noise over a 10 Hz band).
 
+These defaults are a BlueROV2's; a vehicle with other sensors overrides any of them in its MJCF file
+(`<numeric name="marinejax:sensors:dvl.rate_hz" data="5"/>`, see `vehicle.sensor_settings`).
 Every sensor has `ideal`: True gives the exact value at every step (no noise, bias, latency or
 dropout), to switch the sensors on one at a time. All parameters can be changed per env
 (`--env sensors.dvl.noise_fraction=0.02`); `randomization` scales every noise per episode and draws
