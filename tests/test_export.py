@@ -9,6 +9,8 @@ import jax
 import numpy as np
 import pytest
 
+import marinejax
+
 from marinejax.control import policy_controller, rollout
 from marinejax.export import export_policy, load_numpy_policy
 from marinejax.train.checkpoints import load_policy
@@ -100,3 +102,14 @@ def test_run_without_checkpoint_is_a_user_error(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "marinejax.cli", "export", str(run), "--format", "npz"], capture_output=True,
                           text=True, timeout=300, cwd=tmp_path)
     assert proc.returncode == 2 and "has no complete checkpoint" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_export_metadata_names_the_sensor_mode_and_its_settings():
+    from marinejax.export import _observation_mode
+
+    exact = marinejax.make(ENV).config
+    assert _observation_mode(exact).startswith("state")
+    sensed = marinejax.make(ENV, observation_mode="sensors", **{"sensors.latency.action": 2}).config
+    meta = json.loads(json.dumps(_observation_mode(sensed)))  # JSON-serialisable, as written into the files
+    assert meta["mode"].startswith("sensors") and meta["sensors"]["latency"]["action"] == 2
+    assert meta["sensors"]["dvl"]["rate_hz"] == 10.0 and "position_fix" in meta["sensors"]

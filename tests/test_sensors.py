@@ -212,7 +212,7 @@ def test_sensor_observation_contains_no_exact_state_component(exact_run, sensor_
     np.testing.assert_array_equal(sensor_run[2], exact_run[2])
 
 
-@pytest.mark.parametrize("latency", [1, 3])
+@pytest.mark.parametrize("latency", [1, pytest.param(3, marks=pytest.mark.slow)])
 def test_observation_latency_shifts_the_observation_by_exactly_that_many_steps(actions, sensor_run, latency):
     obs, _, pos = _rollout(marinejax.make(ENV, observation_mode="sensors", **{"sensors.latency.observation": latency}), actions)
     np.testing.assert_array_equal(obs[:, latency:], sensor_run[0][:, :-latency])

@@ -3,16 +3,20 @@
 They read the env's observation through `MarineEnv.observation_fields()`, exactly what a policy
 sees (in `observation_mode="sensors"` too), and command the thrusters in [−1, 1].
 
-PID (`pid_controller`), per degree of freedom in the body frame, designed on the vehicle's nominal
-model linearised around hover, one decoupled axis at a time: M_i ë + D_i ė = τ_i, with M_i the
+PID (`pid_controller`): one loop per degree of freedom in the body frame on the position error,
+its rate (reference minus measured velocity) and its integral, with the reference velocity fed
+forward. A cascade of a P position loop around a PI velocity loop is the same law with its three
+gains reparametrised (k_p = K_v K_p + K_i, k_d = K_v, k_i = K_i K_p). Designed on the vehicle's
+nominal model linearised around hover, one decoupled axis at a time: M_i ë + D_i ė = τ_i, with M_i the
 rigid-body plus added mass (inertia) and D_i the linear damping. A PID on that axis gives the
 closed loop M s³ + (D + k_d) s² + k_p s + k_i; placing its three poles at −ω (critically damped):
   k_p = 3 M ω², k_d = 3 M ω − D (≥ 0), k_i = M ω³,
 with one bandwidth ω for translation and one for rotation, twice as fast (`PIDConfig`). The
 bandwidth is tuned per env by `tune`: the one of a fixed grid with the lowest mean error over
 episodes drawn from a seed other than the evaluation's (the thruster lag and the 20 Hz control
-rate, which the design model leaves out, are what stops higher bandwidths from paying off). The integral is the env's
-leaky integral of the error (in the observation); roll and pitch have no integral (k_i = 0 leaves
+rate, which the design model leaves out, are what stops higher bandwidths from paying off).
+The integral is the env's leaky integral of the error (in the observation); roll and pitch have
+no integral (k_i = 0 leaves
 M s² + 3 M ω s + 3 M ω²: poles at √3 ω with damping ratio √3/2): the restoring wrench (weight,
 buoyancy, centre of buoyancy) is compensated from the measured attitude instead.
 Feedforward: the reference velocity, and the damping it needs (linear and quadratic). The wrench
