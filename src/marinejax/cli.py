@@ -222,10 +222,9 @@ def _excite(args: argparse.Namespace) -> int:
 
 
 def _identify(args: argparse.Namespace) -> int:
+    from marinejax.errors import MissingFileError
     from marinejax.identify import Identifier, plot_fit, read_log, save_param_set
     from marinejax.plant import Plant, PlantConfig
-
-    from marinejax.errors import MissingFileError
     from marinejax.vehicle import list_vehicles
 
     if not Path(args.log).is_file():  # checked before anything compiles

@@ -2,7 +2,8 @@
 
 Log format (CSV, one row per control step at a constant period; `read_log`, `write_log`):
   time_s                                  s since the start
-  u1 .. uN                                throttle per thruster in [−1, 1], the vehicle's thruster order
+  u1 .. uN                                throttle per thruster in [−1, 1], the vehicle's thruster order,
+                                          applied from this row's time to the next row's
   qw, qx, qy, qz                          attitude, body → world (world z up, body FLU)
   vx_mps, vy_mps, vz_mps                  body-frame velocity over ground (a DVL gives it), m/s
   wx_radps, wy_radps, wz_radps            body-frame angular velocity (the gyro), rad/s
@@ -207,10 +208,9 @@ _SCALE = np.concatenate([s for _, _, s, _ in _FIT])
 _LOWER = np.concatenate([np.full(n, lo) for _, n, _, lo in _FIT])
 
 
-def _noise(log: Log) -> np.ndarray:
-    """Measurement noise per residual channel (velocity 3, angular velocity 3, roll, pitch): the
-    sensor models' (DVL at 0.5 m/s, gyro, attitude) as a floor."""
-    return np.array([0.006] * 3 + [0.002] * 3 + [0.0035] * 2)
+# Measurement noise per residual channel (body velocity 3 m/s, angular velocity 3 rad/s, roll and
+# pitch rad): the sensor models' size (DVL at 0.5 m/s, gyro, attitude estimate).
+_NOISE = np.array([0.006] * 3 + [0.002] * 3 + [0.0035] * 2)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -254,7 +254,7 @@ class Identifier:
         self.start_rows = jnp.asarray(starts)
         self.commands = jnp.asarray(log.commands[idx - 1])  # the command of row k acts from row k to k + 1
         self.target = jnp.asarray(np.concatenate([log.velocity[idx], log.angular_velocity[idx], euler[idx][..., :2]], axis=-1))
-        self.noise = jnp.asarray(_noise(log))
+        self.noise = jnp.asarray(_NOISE)
         self.base = plant.nominal_params()
         self.x0 = _flatten(self.base)
         self.free = np.array([fit_thruster_gain or n != "thruster_gain" for n in PARAMETER_NAMES])
@@ -335,7 +335,7 @@ class Identifier:
 def simulate_log(plant: Plant, params: PlantParams, commands: np.ndarray, seed: int = 0, noise: bool = True,
                  start: VehicleState | None = None) -> Log:
     """A synthetic log: `commands` run on `params` from rest at 5 m depth (or `start`), measured with
-    white noise of the sensor models' size (DVL 1 % + 1 mm/s, gyro, attitude; see `_noise`)."""
+    white noise of the sensor models' size (DVL 1 % + 1 mm/s, gyro, attitude; see `_NOISE`)."""
     key = jax.random.PRNGKey(seed)
     if start is None:
         from marinejax.physics import initial_state
