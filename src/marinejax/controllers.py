@@ -42,7 +42,7 @@ from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
-from marinejax.thrusters import inverse_t200, t200_thrust
+from marinejax.thrusters import full_thrust, inverse_t200
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,14 +109,13 @@ def _hover(env: MarineEnv) -> _Hover:
         raise UserError(f"the classical controllers command thrusters; the env has action_mode={env.config.action_mode!r}")
     p = env.plant.nominal_params()
     g = env.plant.gravity
-    full = np.asarray(t200_thrust(env.vehicle.sys.thrusters.curve, jnp.array([-1.0, 1.0]), p.voltage)) * np.min(np.asarray(p.thruster_gain))
     return _Hover(
         fields=env.observation_fields(),
         mass=np.concatenate([np.full(3, float(p.mass)), np.asarray(p.inertia, float)]) + np.asarray(p.hydro.added_mass, float),
         damping=np.asarray(p.hydro.linear_damping, float), quadratic=np.asarray(p.hydro.quadratic_damping, float),
         net_up=float(p.net_buoyancy(g)), buoyancy=float(p.hydro.fluid_density * p.hydro.volume * g),
         cob=np.asarray(p.hydro.center_of_buoyancy, float), allocation=np.asarray(env.vehicle.sys.thrusters.allocation, float),
-        throttle=inverse_thrust(env.plant), max_thrust=float(np.min(np.abs(full))),
+        throttle=inverse_thrust(env.plant), max_thrust=full_thrust(env.vehicle.sys.thrusters.curve, p.voltage) * float(np.min(np.asarray(p.thruster_gain))),
     )
 
 

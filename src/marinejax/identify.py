@@ -57,7 +57,7 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.frames import quat_to_euler
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams
-from marinejax.thrusters import inverse_t200, lag_step, t200_thrust
+from marinejax.thrusters import full_thrust, inverse_t200, lag_step, t200_thrust
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,7 +145,7 @@ def excitation(plant: Plant, duration: float = 120.0, amplitude: float = 0.5, se
     rng = np.random.default_rng(seed)
     params = plant.nominal_params()
     curve = plant.vehicle.sys.thrusters.curve
-    full = float(np.min(np.abs(np.asarray(t200_thrust(curve, jnp.array([-1.0, 1.0]), params.voltage)))))
+    full = full_thrust(curve, params.voltage)
     alloc = np.asarray(plant.vehicle.sys.thrusters.allocation)
     pinv = np.linalg.pinv(alloc)
     # the largest wrench per axis that keeps every thruster within `amplitude` of full thrust

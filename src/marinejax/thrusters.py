@@ -83,6 +83,11 @@ def t200_thrust(curve: T200Curve, command: jnp.ndarray, voltage: jnp.ndarray) ->
     return lo * (1 - fv) + hi * fv
 
 
+def full_thrust(curve: T200Curve, voltage) -> float:
+    """The smaller of the full-forward and full-reverse steady thrust (N) of a T200 at `voltage` (V)."""
+    return float(np.min(np.abs(np.asarray(t200_thrust(curve, jnp.array([-1.0, 1.0]), jnp.asarray(voltage))))))
+
+
 def inverse_t200(curve: T200Curve, voltage: float, samples: int = 801):
     """throttle(thrust): the inverse of the steady T200 curve at supply `voltage` (V); thrust in N
     along the thruster axis, throttle in [−1, 1] (±1 beyond the curve, 0 for zero thrust: the dead
