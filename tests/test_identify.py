@@ -1,6 +1,7 @@
 """System identification on synthetic logs: a vehicle whose parameters differ from the defaults by
-±40 %, driven by the excitation, measured with sensor-size noise; the fit must recover what the log
-determines and predict a fresh manoeuvre far better than the defaults."""
+±40 %, driven by the excitation, measured by the sensor models (gyro bias and noise, attitude
+estimate, 10 Hz DVL with dropouts); the fit must recover what the log determines and predict a
+fresh manoeuvre far better than the defaults."""
 
 import json
 import subprocess
@@ -45,7 +46,8 @@ def test_fit_recovers_the_well_excited_parameters_within_5_percent(fit):
     plant, true, result = fit
     truth = _flatten(true)
     relative_std = result.std / np.maximum(np.abs(result.values), 1e-9)
-    well = result.fitted & (relative_std < 0.02) & (np.abs(truth) > 0)
+    # well excited: 5 % is at least three standard deviations
+    well = result.fitted & (relative_std < 0.05 / 3) & (np.abs(truth) > 0)
     names = {n for n, w in zip(PARAMETER_NAMES, well) if w}
     # what the excitation must determine: every added mass, the rotational damping, the centre of
     # buoyancy, the displaced volume and the thruster time constant
@@ -68,6 +70,18 @@ def test_noiseless_log_gives_the_parameters_almost_exactly():
     scale = np.maximum(np.abs(truth), 0.01 * _SCALE)  # a zero-valued parameter: 1 % of its natural scale
     np.testing.assert_allclose(result.values / scale, truth / scale, atol=2e-3)
     assert result.cost_after < 1e-6 * result.cost_before
+
+
+@pytest.mark.slow
+def test_a_surge_only_log_leaves_the_sway_damping_undetermined():
+    plant = Plant("bluerov2_heavy", PlantConfig())
+    surge = excitation(plant, duration=80.0, seed=0)[:200]  # the first 10 s: surge alone
+    log = simulate_log(plant, perturbed(plant), np.concatenate([surge] * 3), seed=2)
+    result = Identifier(plant, log).fit()
+    determined = dict(zip(PARAMETER_NAMES, result.determined))
+    assert determined["added_mass[0]"] and determined["quadratic_damping[0]"]
+    # sway moves only through couplings (< 0.1 m/s): its damping is not determined
+    assert not determined["linear_damping[1]"] and not determined["quadratic_damping[1]"]
 
 
 @pytest.mark.slow
@@ -106,6 +120,29 @@ def test_log_round_trip_and_bad_logs(tmp_path):
         Identifier(Plant("bluerov2_heavy", PlantConfig()), log)
 
 
+def test_synthetic_log_is_measured_by_the_sensor_models(tmp_path):
+    plant = Plant("bluerov2", PlantConfig())
+    commands = excitation(plant, duration=10.0)
+    measured = simulate_log(plant, plant.nominal_params(), commands, seed=3)
+    exact = simulate_log(plant, plant.nominal_params(), commands, seed=3, noise=False)
+    valid = measured.dvl_valid
+    assert exact.dvl_valid is None and valid[0]
+    assert 0.4 < valid.mean() < 0.5  # a 10 Hz DVL at the 20 Hz control rate, 2 % dropouts
+    held = ~valid[1:]
+    np.testing.assert_array_equal(measured.velocity[1:][held], measured.velocity[:-1][held])
+    noise = (measured.velocity - exact.velocity)[valid]
+    speed = np.linalg.norm(exact.velocity[valid], axis=1, keepdims=True)
+    assert 0.5 < np.std(noise / (0.0101 * speed + 0.001)) < 1.5  # the DVL's 1.01 % + 1 mm/s
+    gyro_error = measured.angular_velocity - exact.angular_velocity
+    assert np.all(np.abs(gyro_error.mean(axis=0)) > 3 * gyro_error.std(axis=0) / np.sqrt(len(gyro_error)))  # a bias
+    back = read_log(write_log(tmp_path / "log.csv", measured), 6)
+    np.testing.assert_array_equal(back.dvl_valid, valid)
+    text = (tmp_path / "log.csv").read_text().splitlines()
+    (tmp_path / "bad.csv").write_text("\n".join(text[:3] + [text[3][:-1] + "2"] + text[4:]))
+    with pytest.raises(UserError, match="dvl_valid must be 0 or 1, got \\[2.0\\]"):
+        read_log(tmp_path / "bad.csv", 6)
+
+
 @pytest.mark.slow
 def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(tmp_path):
     """`marinejax excite` → (the vehicle runs it: simulated here) → `marinejax identify` → a
@@ -120,7 +157,7 @@ def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(t
     write_log(tmp_path / "log.csv", simulate_log(plant, true, commands, seed=4))
     proc = run("identify", "log.csv", "--vehicle", "bluerov2_heavy", "--out", "fitted.json")
     assert proc.returncode == 0, proc.stderr
-    assert "added_mass[0]" in proc.stdout and "iteration  1" in proc.stdout and "not determined" in proc.stdout
+    assert "added_mass[0]" in proc.stdout and "iteration  1" in proc.stdout and "held (not fitted)" in proc.stdout
     assert (tmp_path / "fitted.png").is_file()
     data = json.loads((tmp_path / "fitted.json").read_text())
     np.testing.assert_allclose(data["added_mass"], np.asarray(true.hydro.added_mass), rtol=0.1)  # accuracy: the test above

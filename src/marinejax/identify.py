@@ -8,7 +8,13 @@ Log format (CSV, one row per control step at a constant period; `read_log`, `wri
   vx_mps, vy_mps, vz_mps                  body-frame velocity over ground (a DVL gives it), m/s
   wx_radps, wy_radps, wz_radps            body-frame angular velocity (the gyro), rad/s
   x_m, y_m, z_m                           optional world position (z up), m
+  dvl_valid                               optional, 1 or 0: 0 where the DVL gave no new measurement
+                                          (between its updates, dropouts) and the row holds an older
+                                          velocity; such rows are left out of the velocity residuals
 A vehicle in ArduSub logs this from its thruster outputs, the AHRS attitude, the DVL and the gyro.
+`simulate_log` makes such a log from a parameter set, measured by the plant's sensor models
+(`plant.sensors`: gyro bias and noise, attitude-estimate noise, a 10 Hz DVL with dropouts, a late
+position fix).
 
 `excitation(vehicle)` makes a command sequence that moves each degree of freedom in turn and then
 all of them (piecewise-constant random levels in wrench space, held 0.5–2 s, within `amplitude` of
@@ -17,14 +23,19 @@ only time and commands, for a user to run on their vehicle.
 
 `identify(log, vehicle)` fits added mass (6), linear and quadratic damping (6 + 6), displaced
 volume, centre of buoyancy (3), one thruster gain for all thrusters and the thruster time constant
-by multiple shooting (the thruster gain only on request, see below): the log is cut into windows of `window` seconds; each starts from the logged
-state and is simulated with the logged commands by the same differentiable plant the envs use; the
-residuals are the simulated minus logged body velocities, angular velocities, roll and pitch, each
-divided by its measurement noise. Short windows keep the rollouts from diverging, so long logs and
-weakly stable directions do not blow up the fit. The optimiser is Levenberg–Marquardt on the
-Jacobian that JAX gives through the rollout (a least-squares problem with 24 unknowns: faster and
-more precise here than first-order methods such as optax's Adam), with every parameter kept within
-physical bounds. Uncertainty: the Gauss–Newton covariance σ² (JᵀJ)⁻¹ at the optimum, σ² the mean
+(the thruster gain only on request, see below) by multiple shooting: the log is cut into windows of
+`window` seconds, each starting on a row with a DVL measurement; each is simulated from its start
+state with the logged commands by the same differentiable plant the envs use. The residuals are the
+simulated minus logged body velocities (rows with a new DVL measurement only), angular velocities,
+roll and pitch, each divided by its measurement noise. A window's start state (velocity, angular
+velocity, roll, pitch) is a measurement too, so it is fitted as well, held to the measured start by
+a prior of the same noise: starting from the noisy measurement itself biases the damping (errors in
+the variables). Short windows keep the rollouts from diverging, so long logs and weakly stable
+directions do not blow up the fit. The optimiser is Levenberg–Marquardt on the Jacobian that JAX
+gives through the rollout (24 parameters plus 8 per window; the windows' starts are eliminated
+from each step by the Schur complement, as in bundle adjustment; faster and more precise here than
+first-order methods such as optax's Adam), with every parameter kept within physical bounds.
+Uncertainty: the Gauss–Newton covariance σ² (Schur complement)⁻¹ at the optimum, σ² the mean
 squared normalised residual; a parameter whose standard deviation exceeds 10 % of its scale is
 reported as not determined by the log (relative to the larger of its value and its scale).
 
@@ -54,7 +65,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from marinejax.errors import MissingFileError, UserError
-from marinejax.frames import quat_to_euler
+from marinejax.frames import quat_from_euler, quat_to_euler
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams
 from marinejax.thrusters import full_thrust, inverse_t200, lag_step, t200_thrust
@@ -70,6 +81,7 @@ class Log:
     velocity: np.ndarray | None = None  # (T, 3) m/s, body
     angular_velocity: np.ndarray | None = None  # (T, 3) rad/s, body
     position: np.ndarray | None = None  # (T, 3) m, world
+    dvl_valid: np.ndarray | None = None  # (T,) bool: the row's velocity is a new DVL measurement
 
     @property
     def dt(self) -> float:
@@ -92,6 +104,8 @@ def write_log(path: Path | str, log: Log) -> Path:
         values = getattr(log, field)
         if values is not None:
             columns.update({name: values[:, i : i + 1] for i, name in enumerate(names)})
+    if log.dvl_valid is not None:
+        columns["dvl_valid"] = log.dvl_valid.astype(float)[:, None]
     with open(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(list(columns))
@@ -126,6 +140,13 @@ def read_log(path: Path | str, num_thrusters: int) -> Log:
     for field, names in _STATE_COLUMNS.items():
         if all(n in col for n in names):
             fields[field] = data[:, [col[n] for n in names]]
+    if "dvl_valid" in col:
+        valid = data[:, col["dvl_valid"]]
+        if not np.all((valid == 0) | (valid == 1)):
+            raise UserError(f"{path}: dvl_valid must be 0 or 1, got {sorted(set(valid[(valid != 0) & (valid != 1)].tolist()))[:5]}")
+        if valid.sum() < 2:
+            raise UserError(f"{path}: dvl_valid marks fewer than two rows as valid")
+        fields["dvl_valid"] = valid.astype(bool)
     log = Log(time=data[:, col["time_s"]], commands=data[:, [col[c] for c in needed[1:]]], **fields)
     if np.any(np.diff(log.time) <= 0):
         raise UserError(f"{path}: time_s must increase")
@@ -240,13 +261,23 @@ class Identifier:
                             "resample the log or pass --env control_dt=...")
         self.plant = plant
         self.steps = max(2, int(round(window / plant.config.control_dt)))
-        n = (len(log.time) - 1) // self.steps
+        valid = np.ones(len(log.time), bool) if log.dvl_valid is None else np.asarray(log.dvl_valid, bool)
+        # windows start on rows with a DVL measurement (a row without one holds an older velocity)
+        starts, row = [], 0
+        while row + self.steps < len(log.time):
+            if valid[row]:
+                starts.append(row)
+                row += self.steps
+            else:
+                row += 1
+        starts = np.asarray(starts, int)
+        n = len(starts)
         if n < 4:
             raise UserError(f"the log is too short: {len(log.time)} rows give {n} windows of {window} s (need at least 4)")
-        starts = np.arange(n) * self.steps
         idx = starts[:, None] + np.arange(1, self.steps + 1)[None]
         q = log.quaternion / np.linalg.norm(log.quaternion, axis=1, keepdims=True)
         euler = np.asarray(jax.vmap(quat_to_euler)(jnp.asarray(q)))
+        self.start_euler = jnp.asarray(euler[starts])
         self.start = VehicleState(position=jnp.zeros((n, 3)), quaternion=jnp.asarray(q[starts]),
                                   velocity=jnp.asarray(log.velocity[starts]), angular_velocity=jnp.asarray(log.angular_velocity[starts]),
                                   thrust=jnp.zeros((n, plant.vehicle.num_thrusters)))
@@ -254,15 +285,22 @@ class Identifier:
         self.start_rows = jnp.asarray(starts)
         self.commands = jnp.asarray(log.commands[idx - 1])  # the command of row k acts from row k to k + 1
         self.target = jnp.asarray(np.concatenate([log.velocity[idx], log.angular_velocity[idx], euler[idx][..., :2]], axis=-1))
+        # residual weights: 0 for the velocity of a row without a new DVL measurement
+        weight = np.ones(self.target.shape)
+        weight[..., :3] = valid[idx][..., None]
+        self.weight = jnp.asarray(weight)
+        self.count = float(weight.sum())
         self.noise = jnp.asarray(_NOISE)
         self.base = plant.nominal_params()
         self.x0 = _flatten(self.base)
         self.free = np.array([fit_thruster_gain or n != "thruster_gain" for n in PARAMETER_NAMES])
         self.residuals = jax.jit(self._residuals)
-        self.jacobian = jax.jit(jax.jacfwd(self._residuals))
+        self.linearize = jax.jit(self._linearize)
 
-    def simulate(self, params: PlantParams) -> jnp.ndarray:
-        """(windows, steps, 8): body velocity, angular velocity, roll, pitch simulated from each window's start."""
+    def simulate(self, params: PlantParams, offset: jnp.ndarray | None = None) -> jnp.ndarray:
+        """(windows, steps, 8): body velocity, angular velocity, roll, pitch simulated from each
+        window's start; `offset` (windows, 8) is added to the start's velocity, angular velocity,
+        roll and pitch (the fitted correction of the measured start)."""
         plant, key = self.plant, jax.random.PRNGKey(0)
         # the thrusters' lag state at each window start: the lag filter run over the whole command
         # history from rest (it does not depend on the rigid-body motion)
@@ -277,54 +315,89 @@ class Identifier:
         _, history = jax.lax.scan(lag, jnp.zeros(self.all_commands.shape[1]), self.all_commands)
         history = jnp.concatenate([jnp.zeros((1, history.shape[1])), history])  # thrust at row k
 
-        def window(start, thrust, commands):
-            state = plant.init(key, params, start.replace(thrust=thrust))
+        def window(start, euler, offset, thrust, commands):
+            quaternion = quat_from_euler(euler[0] + offset[6], euler[1] + offset[7], euler[2])
+            start = start.replace(velocity=start.velocity + offset[:3], angular_velocity=start.angular_velocity + offset[3:6],
+                                  quaternion=quaternion, thrust=thrust)
+            state = plant.init(key, params, start)
+            vs = plant.open_loop(params, state, commands, key)[1]
+            euler = jax.vmap(quat_to_euler)(vs.quaternion)[:, :2]
+            return jnp.concatenate([vs.velocity, vs.angular_velocity, euler], axis=-1)
 
-            def body(state, u):
-                state, _ = plant.step(params, state, u, key)
-                vs = plant.vehicle_state(state)
-                return state, jnp.concatenate([vs.velocity, vs.angular_velocity, quat_to_euler(vs.quaternion)[:2]])
+        if offset is None:
+            offset = jnp.zeros((len(self.start_rows), 8))
+        return jax.vmap(window)(self.start, self.start_euler, offset, history[self.start_rows], self.commands)
 
-            return jax.lax.scan(body, state, commands)[1]
-
-        return jax.vmap(window)(self.start, history[self.start_rows], self.commands)
-
-    def _residuals(self, z: jnp.ndarray) -> jnp.ndarray:
+    def _residuals(self, z: jnp.ndarray, offset: jnp.ndarray) -> jnp.ndarray:
+        """(windows, steps · 8) normalised residuals; z: normalised parameters, offset: (windows, 8)."""
         x = jnp.asarray(self.x0) + z * jnp.asarray(_SCALE, jnp.float32)
-        return ((self.simulate(_unflatten(self.base, x)) - self.target) / self.noise).reshape(-1)
+        d = self.simulate(_unflatten(self.base, x), offset) - self.target
+        d = d.at[..., 6:].set(jnp.arctan2(jnp.sin(d[..., 6:]), jnp.cos(d[..., 6:])))  # roll/pitch across ±π
+        return (d * self.weight / self.noise).reshape(d.shape[0], -1)
+
+    def _linearize(self, z: jnp.ndarray, offset: jnp.ndarray):
+        """Residuals with their Jacobians in z (windows, rows, 24) and in each window's own start
+        offset (windows, rows, 8). A window depends only on its own start, so shifting every
+        window's offset at once gives every block in 8 directional derivatives."""
+        r = self._residuals(z, offset)
+        jz = jax.jacfwd(self._residuals)(z, offset)
+        js = jax.jacfwd(lambda e: self._residuals(z, offset + e[None]))(jnp.zeros(8))
+        return r, jz, js
 
     def fit(self, iterations: int = 30, progress: Callable[[str], None] | None = None) -> FitResult:
+        """Levenberg–Marquardt over the parameters and every window's start correction (each held to
+        its measurement by a prior of the measurement noise), the starts eliminated per step (Schur
+        complement); the parameters' covariance accounts for the starts' uncertainty."""
         t0 = _time.perf_counter()
         lower = (_LOWER - self.x0) / _SCALE  # bounds on z
         free = self.free
-        z = np.zeros(len(self.x0))
-        r = np.asarray(self.residuals(jnp.asarray(z, jnp.float32)), float)
-        cost0 = cost = float(np.mean(r**2))
+        z, offset = np.zeros(len(self.x0)), np.zeros((len(self.start_rows), 8))
+        prior = 1.0 / np.asarray(self.noise, float)  # a start correction's prior residual: offset / noise
+
+        def evaluate(z, offset):
+            r = np.asarray(self.residuals(jnp.asarray(z, jnp.float32), jnp.asarray(offset, jnp.float32)), float)
+            total = float(np.sum(r**2) + np.sum((offset * prior) ** 2))
+            return total / self.count if np.isfinite(total) else np.inf
+
+        def normal_equations(z, offset):
+            r, jz, js = (np.asarray(a, float) for a in self.linearize(jnp.asarray(z, jnp.float32), jnp.asarray(offset, jnp.float32)))
+            a_mat, g = np.einsum("wri,wrj->ij", jz, jz), np.einsum("wri,wr->i", jz, r)
+            b_mat = np.einsum("wri,wrj->wij", js, js) + np.diag(prior**2)
+            gs = np.einsum("wri,wr->wi", js, r) + offset * prior**2
+            return a_mat, g, b_mat, gs, np.einsum("wri,wrj->wij", jz, js)
+
+        cost0 = cost = evaluate(z, offset)
         lam = 1e-2
         for it in range(iterations):
-            j = np.asarray(self.jacobian(jnp.asarray(z, jnp.float32)), float)[:, free]
-            jtj, g = j.T @ j, j.T @ r
-            while True:
+            a_mat, g, b_mat, gs, e_mat = normal_equations(z, offset)
+            # a parameter at its bound that the gradient pushes further out stays there this step
+            # (projecting the full step instead stalls the fit)
+            active = free & ~((z <= lower + 1e-9) & (g > 0))
+            a_act, e_act = a_mat[np.ix_(active, active)], e_mat[:, active]
+            improvement = 0.0
+            while lam <= 1e8:
+                b_inv = np.linalg.inv(b_mat * (1 + lam * np.eye(8)))
+                reduced = a_act + lam * np.diag(np.diag(a_act) + 1e-9) - np.einsum("wij,wjk,wlk->il", e_act, b_inv, e_act)
                 step = np.zeros_like(z)
-                step[free] = -np.linalg.solve(jtj + lam * np.diag(np.diag(jtj) + 1e-9), g)
+                step[active] = -np.linalg.solve(reduced, g[active] - np.einsum("wij,wjk,wk->i", e_act, b_inv, gs))
                 z_new = np.maximum(z + step, lower)
-                r_new = np.asarray(self.residuals(jnp.asarray(z_new, jnp.float32)), float)
-                cost_new = float(np.mean(r_new**2)) if np.all(np.isfinite(r_new)) else np.inf
+                offset_new = offset - np.einsum("wij,wj->wi", b_inv, gs + np.einsum("wij,i->wj", e_mat, z_new - z))
+                cost_new = evaluate(z_new, offset_new)
                 if cost_new < cost:
-                    z, r, lam = z_new, r_new, max(lam / 3, 1e-7)
+                    improvement = cost - cost_new
+                    z, offset, cost, lam = z_new, offset_new, cost_new, max(lam / 3, 1e-7)
                     break
                 lam *= 4
-                if lam > 1e8:
-                    break
-            improvement = cost - cost_new if cost_new < np.inf else 0.0
-            cost = min(cost, cost_new)
             if progress is not None:
                 progress(f"iteration {it + 1:2d}: cost {cost:.4g} (mean squared residual / noise²)")
             if lam > 1e8 or improvement < 1e-6 * cost:
                 break
-        j = np.asarray(self.jacobian(jnp.asarray(z, jnp.float32)), float)[:, free]
+        # covariance of the parameters, the starts eliminated: σ² (Schur complement)⁻¹
+        a_mat, _, b_mat, _, e_mat = normal_equations(z, offset)
+        e_free = e_mat[:, free]
+        info = a_mat[np.ix_(free, free)] - np.einsum("wij,wjk,wlk->il", e_free, np.linalg.inv(b_mat), e_free)
         std_z = np.zeros(len(z))
-        std_z[free] = np.sqrt(np.maximum(np.diag(np.linalg.pinv(j.T @ j) * cost), 0))
+        std_z[free] = np.sqrt(np.maximum(np.diag(np.linalg.pinv(info) * cost), 0))
         values = self.x0 + z * _SCALE
         std = std_z * _SCALE
         return FitResult(params=_unflatten(self.base, jnp.asarray(values, jnp.float32)), names=PARAMETER_NAMES,
@@ -334,43 +407,45 @@ class Identifier:
 
 def simulate_log(plant: Plant, params: PlantParams, commands: np.ndarray, seed: int = 0, noise: bool = True,
                  start: VehicleState | None = None) -> Log:
-    """A synthetic log: `commands` run on `params` from rest at 5 m depth (or `start`), measured with
-    white noise of the sensor models' size (DVL 1 % + 1 mm/s, gyro, attitude; see `_NOISE`)."""
+    """A synthetic log: `commands` (T, N) run on `params` from rest at 5 m depth (or `start`); T + 1
+    rows. Measured by the plant's sensor models (`plant.config.sensors`): the attitude estimate, the
+    gyro (turn-on bias, walk, noise), the DVL (its rate; rows between updates and dropouts hold the
+    last value, dvl_valid 0) and the position fix (its rate and latency). `noise=False` logs the
+    exact state at every row."""
     key = jax.random.PRNGKey(seed)
     if start is None:
         from marinejax.physics import initial_state
 
         start = initial_state(plant.vehicle, position=(0.0, 0.0, -5.0))
+    sensors = plant.sensors
 
     @jax.jit
     def run(commands):
-        state = plant.init(key, params, start)
+        k_run, k_params, k_init, k_measure = jax.random.split(key, 4)
+        _, states, finite = plant.open_loop(params, plant.init(k_run, params, start), commands, k_run)
+        states = jax.tree.map(lambda a0, a: jnp.concatenate([a0[None], a]), start, states)
+        sensor_state, first = sensors.init(k_init, sensors.sample_params(k_params), start)
 
-        def body(state, u):
-            state, finite = plant.step(params, state, u, key)
-            vs = plant.vehicle_state(state)
-            return state, (vs.position, vs.quaternion, vs.velocity, vs.angular_velocity, finite)
+        def measure(sensor_state, xs):
+            return sensors.step(sensor_state, *xs)
 
-        return jax.lax.scan(body, state, commands)[1]
+        _, rest = jax.lax.scan(measure, sensor_state, (jax.tree.map(lambda a: a[1:], states),
+                                                       jax.random.split(k_measure, commands.shape[0])))
+        measured = jax.tree.map(lambda a0, a: jnp.concatenate([a0[None], a]), first, rest)
+        return states, measured, finite
 
-    pos, quat, vel, ang, finite = (np.asarray(a, float) for a in run(jnp.asarray(commands)))
+    states, measured, finite = jax.tree.map(np.asarray, run(jnp.asarray(commands, jnp.float32)))
     if not np.all(finite):
         raise FloatingPointError("the simulated log went non-finite")
-    s0 = jax.tree.map(lambda a: np.asarray(a, float)[None], start)
-    pos, quat, vel, ang = (np.concatenate([a0, a]) for a0, a in
-                           ((s0.position, pos), (s0.quaternion, quat), (s0.velocity, vel), (s0.angular_velocity, ang)))
+    time = plant.config.control_dt * np.arange(len(commands) + 1)
     commands = np.concatenate([commands, commands[-1:]])
-    if noise:
-        rng = np.random.default_rng(seed)
-        vel = vel + rng.normal(size=vel.shape) * (0.0101 * np.linalg.norm(vel, axis=1, keepdims=True) + 0.001)
-        ang = ang + rng.normal(size=ang.shape) * 0.002
-        euler = np.asarray(jax.vmap(quat_to_euler)(jnp.asarray(quat))) + rng.normal(size=(len(quat), 3)) * 0.0035
-        from marinejax.frames import quat_from_euler
-
-        quat = np.asarray(jax.vmap(quat_from_euler)(euler[:, 0], euler[:, 1], euler[:, 2]))
-        pos = pos + rng.normal(size=pos.shape) * 0.05
-    time = plant.config.control_dt * np.arange(len(commands))
-    return Log(time=time, commands=commands, quaternion=quat, velocity=vel, angular_velocity=ang, position=pos)
+    if not noise:
+        return Log(time=time, commands=commands, quaternion=states.quaternion.astype(float),
+                   velocity=states.velocity.astype(float), angular_velocity=states.angular_velocity.astype(float),
+                   position=states.position.astype(float))
+    return Log(time=time, commands=commands, quaternion=measured.quaternion.astype(float),
+               velocity=measured.dvl.astype(float), angular_velocity=measured.gyro.astype(float),
+               position=measured.fix.astype(float), dvl_valid=measured.dvl_new.astype(bool))
 
 
 def save_param_set(path: Path | str, vehicle: str, result: FitResult, source: str) -> Path:
@@ -396,8 +471,9 @@ def prediction_error(plant: Plant, params: PlantParams, log: Log, window: float 
     """RMS (m/s) of the body velocity predicted over `window`-second windows of `log` from each
     window's logged start, with `params`, against the logged velocity."""
     ident = Identifier(plant, log, window)
-    sim = np.asarray(ident.simulate(params))
-    return float(np.sqrt(np.mean((sim[..., :3] - np.asarray(ident.target)[..., :3]) ** 2)))
+    error = (np.asarray(ident.simulate(params)) - np.asarray(ident.target))[..., :3]
+    weight = np.asarray(ident.weight)[..., :3]
+    return float(np.sqrt(np.sum(weight * error**2) / np.sum(weight)))
 
 
 def plot_fit(ident: Identifier, result: FitResult, out: Path | str, windows: int = 12) -> Path:
@@ -408,7 +484,7 @@ def plot_fit(ident: Identifier, result: FitResult, out: Path | str, windows: int
     import matplotlib.pyplot as plt
 
     before, after = (np.asarray(ident.simulate(p))[:windows] for p in (ident.base, result.params))
-    target = np.asarray(ident.target)[:windows]
+    target = np.where(np.asarray(ident.weight) > 0, np.asarray(ident.target), np.nan)[:windows]  # logged rows only
     dt = ident.plant.config.control_dt
     t = dt * (np.arange(windows)[:, None] * ident.steps + np.arange(1, ident.steps + 1)[None])
     fig, axes = plt.subplots(6, 1, figsize=(10, 12), sharex=True)

@@ -85,6 +85,9 @@ class Plant:
         self.action_size = self.vehicle.num_thrusters if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
+        # The MJX step is traced once per plant and reused wherever it is called (training rollout,
+        # evaluation, tests): inlined into each caller's jit it is retraced by each, seconds apiece.
+        self._step = jax.jit(self._step_unjitted)
 
     def nominal_params(self) -> PlantParams:
         """The vehicle's parameters as loaded, no disturbance."""
@@ -109,9 +112,12 @@ class Plant:
         """One control step under `action` (clipped to [−1, 1]: throttles, or the body wrench divided
         by `wrench_scale`). Returns (new state, finite): a non-finite result is never propagated,
         the last finite physics state is kept and `finite` is False."""
+        if jnp.shape(action) != (self.action_size,):
+            raise UserError(f"action must have shape ({self.action_size},) ({self.config.action_mode} mode), got {jnp.shape(action)}")
+        return self._step(params, state, action, rng)
+
+    def _step_unjitted(self, params: PlantParams, state: PlantState, action: jax.Array, rng: jax.Array) -> tuple[PlantState, jax.Array]:
         cfg = self.config
-        if action.shape != (self.action_size,):
-            raise UserError(f"action must have shape ({self.action_size},) ({cfg.action_mode} mode), got {action.shape}")
         action = jnp.clip(action, -1.0, 1.0)
         current = step_current(state.current, rng, cfg.control_dt, cfg.current)
         sys = apply_params(self.sys, params)
@@ -123,6 +129,19 @@ class Plant:
         finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
         ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.physics)
         return PlantState(physics=ps, current=current), finite
+
+    def open_loop(self, params: PlantParams, state: PlantState, actions: jax.Array,
+                  rng: jax.Array) -> tuple[PlantState, VehicleState, jax.Array]:
+        """Run the actions (T, action_size) one control step each. Returns the final state, the
+        exact `VehicleState` after every step (leaves with a leading axis T) and `finite` (T,)."""
+
+        def body(state, xs):
+            action, key = xs
+            state, finite = self.step(params, state, action, key)
+            return state, (self.vehicle_state(state), finite)
+
+        final, (states, finite) = jax.lax.scan(body, state, (actions, jax.random.split(rng, actions.shape[0])))
+        return final, states, finite
 
     def vehicle_state(self, state: PlantState) -> VehicleState:
         """The exact kinematic state: world position and quaternion, body-frame velocities, thrust."""
