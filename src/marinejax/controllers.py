@@ -38,6 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from marinejax.config import check_fields
 from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
@@ -53,10 +54,7 @@ class PIDConfig:
     rotation_bandwidth: float = 3.0
 
     def __post_init__(self):
-        for name in ("translation_bandwidth", "rotation_bandwidth"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise UserError(f"PID '{name}' must be finite and > 0 (rad/s), got {value!r}")
+        check_fields("PIDConfig", self, strict=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,10 +178,7 @@ class LQRConfig:
     angular_velocity_scale: float = 1.0  # rad/s
 
     def __post_init__(self):
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if not (np.isfinite(value) and value > 0):
-                raise UserError(f"LQR '{f.name}' must be finite and > 0, got {value!r}")
+        check_fields("LQRConfig", self, strict=True)
 
 
 def hover_model(env: MarineEnv) -> tuple[np.ndarray, np.ndarray]:

@@ -153,6 +153,10 @@ class MarineEnv(Env):
                 f"episode of {config.episode_length} steps x {config.control_dt} s has no step in the evaluation "
                 f"window ({self.error_window_description}); use a longer episode_length"
             )
+        # Traced once per env and reused by every caller's jit (Brax's training and evaluation
+        # loops, tests): inlined into each caller, the MJX step and the task logic are retraced by
+        # each, about a second apiece.
+        self._jit_transition = jax.jit(self._transition)
 
     @classmethod
     def default_config(cls) -> EnvConfig:
@@ -165,9 +169,13 @@ class MarineEnv(Env):
         return self.plant.action_size
 
     @functools.cached_property
+    def _state_shape(self) -> State:
+        return jax.eval_shape(self.reset, jax.random.PRNGKey(0))
+
+    @property
     def observation_size(self) -> int | dict[str, tuple[int, ...]]:
         """Size of the observation; with privileged_observation, the shape of each key (as Brax)."""
-        obs = jax.eval_shape(self.reset, jax.random.PRNGKey(0)).obs
+        obs = self._state_shape.obs
         return jax.tree.map(lambda x: x.shape, obs) if isinstance(obs, dict) else int(obs.shape[-1])
 
     @property
@@ -213,8 +221,17 @@ class MarineEnv(Env):
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
+        # only the env's own info keys go through the jitted transition: wrappers add others
+        info = {k: state.info[k] for k in self._state_shape.info}
+        ps, obs, reward, done, new, info = self._jit_transition(state.pipeline_state, info, action)
+        # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
+        metrics = {**state.metrics, **new}
+        return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info={**state.info, **info})
+
+    def _transition(self, pipeline_state: PlantState, info: dict, action: jax.Array):
+        """One control step: (plant state, observation, reward, done, metrics, info)."""
         cfg = self.config
-        info = dict(state.info)
+        info = dict(info)
         rng, k_plant = jax.random.split(info["rng"])
         action = jnp.clip(action, -1.0, 1.0)
         applied = action
@@ -223,7 +240,7 @@ class MarineEnv(Env):
             buffer = jnp.concatenate([action[None], info["action_buffer"][:-1]])
             info["action_buffer"] = buffer
             applied = buffer[info["sensors"].params.action_latency]
-        ps, finite = self.plant.step(info["params"], state.pipeline_state, applied, k_plant)
+        ps, finite = self.plant.step(info["params"], pipeline_state, applied, k_plant)
         info.update(rng=rng, time=info["time"] + cfg.control_dt)
         vs = self.plant.vehicle_state(ps)
         if self._sensor_mode:
@@ -245,11 +262,9 @@ class MarineEnv(Env):
         in_window = self.error_window(info["time"]).astype(jnp.float32) / self._window_steps
         new["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
         reward = sum(v for k, v in new.items() if k.startswith("reward/")) * finite
-        # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
-        metrics = dict(state.metrics)
-        metrics.update({k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in new.items()})
+        new = {k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in new.items()}
         obs = jax.tree.map(lambda o: jnp.where(finite, o, 0.0), obs)
-        return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info=info)
+        return ps, obs, reward, done, new, info
 
     # --- errors, observation and reward pieces shared by the tasks -------------------------
     def errors(self, vs: VehicleState, info: dict) -> dict[str, jnp.ndarray]:

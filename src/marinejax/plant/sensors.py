@@ -34,21 +34,12 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.config import check_range
+from marinejax.config import check_fields, check_range
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState
 
 _DEG = math.pi / 180.0
-
-
-def _check_nonnegative(section: str, config) -> None:
-    for f in dataclasses.fields(config):
-        value = getattr(config, f.name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            continue
-        if not (math.isfinite(value) and value >= 0):
-            raise UserError(f"config 'sensors.{section}.{f.name}' must be finite and >= 0, got {value!r}")
 
 
 def _check_rate(section: str, rate_hz: float) -> None:
@@ -69,7 +60,7 @@ class ImuConfig:
     accel_bias_walk: float = 1e-3  # m/s^2/√s (assumed)
 
     def __post_init__(self):
-        _check_nonnegative("imu", self)
+        check_fields("sensors.imu", self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,7 +74,7 @@ class DepthConfig:
     rate_hz: float = 20.0
 
     def __post_init__(self):
-        _check_nonnegative("depth", self)
+        check_fields("sensors.depth", self)
         _check_rate("depth", self.rate_hz)
 
 
@@ -97,7 +88,7 @@ class AttitudeConfig:
     yaw_drift: float = 0.05 * _DEG  # rad/√s, random walk of the heading error
 
     def __post_init__(self):
-        _check_nonnegative("attitude", self)
+        check_fields("sensors.attitude", self)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,7 +102,7 @@ class DvlConfig:
     dropout: float = 0.02  # probability that an update is missing (the last value is held)
 
     def __post_init__(self):
-        _check_nonnegative("dvl", self)
+        check_fields("sensors.dvl", self)
         _check_rate("dvl", self.rate_hz)
         if not self.dropout < 1:
             raise UserError(f"config 'sensors.dvl.dropout' must be < 1, got {self.dropout!r}")
@@ -127,7 +118,7 @@ class PositionFixConfig:
     latency: float = 0.3  # s: a fix describes the position this long before it arrives
 
     def __post_init__(self):
-        _check_nonnegative("position_fix", self)
+        check_fields("sensors.position_fix", self)
         _check_rate("position_fix", self.rate_hz)
 
 
@@ -154,7 +145,7 @@ class LatencyConfig:
     action: int = 0
 
     def __post_init__(self):
-        _check_nonnegative("latency", self)
+        check_fields("sensors.latency", self)
 
 
 @dataclasses.dataclass(frozen=True)
