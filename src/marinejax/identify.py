@@ -424,6 +424,8 @@ def simulate_log(plant: Plant, params: PlantParams, commands: np.ndarray, seed: 
         k_run, k_params, k_init, k_measure = jax.random.split(key, 4)
         _, states, finite = plant.open_loop(params, plant.init(k_run, params, start), commands, k_run)
         states = jax.tree.map(lambda a0, a: jnp.concatenate([a0[None], a]), start, states)
+        if not noise:
+            return states, None, finite
         sensor_state, first = sensors.init(k_init, sensors.sample_params(k_params), start)
 
         def measure(sensor_state, xs):
