@@ -7,8 +7,10 @@
     marinejax bench physics|envs|training|clients [flags]
 
 Every command keeps JAX's persistent compilation cache in the user's cache directory
-(`$XDG_CACHE_HOME/marinejax/jax-compilation-cache`, else `~/.cache/...`), so that a second identical
-run skips most of its compilation; `--no-compile-cache` switches it off for one command.
+(`$XDG_CACHE_HOME/marinejax/jax-compilation-cache`, else `~/.cache/...`), and training keeps the
+envs' traced batched reset and step beside it (`.../marinejax/traced-envs`, `envs/trace_cache.py`),
+so that a second identical run skips most of its tracing and compilation; `--no-compile-cache`
+switches both off for one command.
 """
 
 from __future__ import annotations
@@ -32,6 +34,12 @@ def compile_cache_dir() -> Path:
     `marinejax/jax-compilation-cache`."""
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "marinejax" / "jax-compilation-cache"
+
+
+def trace_cache_dir() -> Path:
+    """Where the CLI keeps the envs' traced batched reset and step (`envs/trace_cache.py`), beside
+    the compilation cache: `.../marinejax/traced-envs`."""
+    return compile_cache_dir().parent / "traced-envs"
 
 
 def enable_compile_cache(path: Path) -> None:
@@ -134,7 +142,8 @@ def _train(args: argparse.Namespace) -> int:
     with TrainingProgress(console, config) as progress:
         try:
             summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
-                            target_error=target, devices=args.devices)
+                            target_error=target, devices=args.devices,
+                            trace_cache=None if args.no_compile_cache else trace_cache_dir())
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
@@ -258,6 +267,8 @@ def _bench(args: argparse.Namespace, rest: list[str]) -> int:
         from marinejax.benchmarks.clients import main as bench_main
     else:
         from marinejax.benchmarks.training import main as bench_main
+
+        return bench_main(rest, trace_cache=None if args.no_compile_cache else trace_cache_dir())
     return bench_main(rest)
 
 
@@ -266,7 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--no-compile-cache", action="store_true",
-                        help=f"do not use JAX's persistent compilation cache (default: on, in {compile_cache_dir()})")
+                        help=f"do not use JAX's persistent compilation cache (default: on, in {compile_cache_dir()}) "
+                             f"nor keep the envs' traced functions (in {trace_cache_dir()})")
 
     tr = sub.add_parser("train", parents=[common], help="train an env with PPO (tuned defaults per task)")
     tr.add_argument("env_name", nargs="?", help="env name, e.g. BlueROV2Heavy-StationKeeping (see marinejax.list_envs())")

@@ -22,6 +22,12 @@ TINY = [
 
 # JAX's persistent compilation cache of these CLI runs (on by default) goes here, not in the user's.
 CACHE_HOME = Path(tempfile.mkdtemp(prefix="marinejax-test-cache-"))
+TRACED = CACHE_HOME / "marinejax" / "traced-envs"
+
+
+def traced() -> dict[str, int]:
+    """The envs' traced functions the CLI has kept so far (`envs/trace_cache.py`): name -> mtime."""
+    return {p.name: p.stat().st_mtime_ns for p in TRACED.iterdir()} if TRACED.is_dir() else {}
 
 
 def marinejax(*args, timeout=600, cwd=None, extra_env=None):
@@ -72,6 +78,8 @@ def test_output_to_a_pipe_is_one_plain_line_per_evaluation_and_the_compile_cache
     assert "\x1b" not in "".join(lines)  # no terminal escapes
     cache = CACHE_HOME / "marinejax" / "jax-compilation-cache"
     assert cache.is_dir() and sum(1 for _ in cache.iterdir()) >= 5
+    # the batched reset and step, for the 8 training and the 4 evaluation envs
+    assert sorted(p.name.split("-")[0] for p in TRACED.iterdir()) == ["reset"] * 2 + ["step"] * 2
 
 
 @pytest.mark.slow
@@ -94,8 +102,10 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
     newest = sorted((run / "checkpoints").iterdir())[-1]
     shutil.rmtree(newest)  # as if training had stopped before its last checkpoint
     kept = int(sorted((run / "checkpoints").iterdir())[-1].name)
+    before = traced()
     proc = marinejax("train", "--resume", str(run), "--episodes", "2", "--no-video")
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert traced() == before != {}  # this second process loaded the first one's traced env functions
     records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     steps = [r["step"] for r in records]
     assert steps == sorted(steps) and steps[-1] >= 1600 and kept in steps
@@ -142,9 +152,12 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
 
 @pytest.mark.slow
 def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_path):
+    before = traced()
+    # 2 evaluation envs: shapes no other run traced, which --no-compile-cache must not keep either
     proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(tmp_path / "t"), "--target-error", "100",
-                     "--no-video", *TINY)
+                     "--no-video", "--no-compile-cache", *TINY, "--ppo", "num_eval_envs=2")
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert traced() == before
     summary = json.loads((tmp_path / "t" / "summary.json").read_text())
     records = [json.loads(line) for line in (tmp_path / "t" / "metrics.jsonl").read_text().splitlines()]
     first = next(r for r in records if r["step"] > 0)
@@ -178,9 +191,10 @@ def test_training_on_two_virtual_cpu_devices_splits_the_batch_and_learns(tmp_pat
     run = tmp_path / "two"
     proc = marinejax("train", "BlueROV2Heavy-CircleTracking", "--run-dir", str(run), "--devices", "2", "--no-video",
                      "--timesteps", "300000", "--episodes", "8", "--ppo", "num_envs=64", "--ppo", "batch_size=64",
-                     "--ppo", "num_evals=4", "--ppo", "num_eval_envs=8", "--no-compile-cache",
+                     "--ppo", "num_evals=4", "--ppo", "num_eval_envs=8",
                      extra_env={"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert any(name.startswith("step-") for name in traced())  # kept under the devices' pmap too
     assert "64 envs on 2 cpu device(s)" in proc.stdout
     config = json.loads((run / "config.json").read_text())
     assert len(config["machine"]["devices"]) == 2

@@ -57,8 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, target: float, episodes: int,
-             log=print) -> dict[str, Any]:
-    """Train (or resume, or reuse) one seed and evaluate it; returns its result row."""
+             log=print, trace_cache: Path | None = None) -> dict[str, Any]:
+    """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `trace_cache`: as
+    `train`'s."""
     from marinejax.train.evaluate import evaluate_run
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.runner import load_train_config, train
@@ -76,7 +77,8 @@ def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, targ
             log(f"{env_name} seed {seed}: {r['step']:>10,} env steps, {r['elapsed']:6.0f} s, "
                 f"evaluation error {err if err is None else f'{err:.4f} m'}")
 
-        summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=False)
+        summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=False,
+                        trace_cache=trace_cache)
         summary["evaluation"] = evaluate_run(run_dir, episodes=episodes, video=False)
         summary_path.write_text(json.dumps(summary, indent=2))
     ev = summary["evaluation"]
@@ -147,7 +149,8 @@ def plot_seeds(env_name: str, rows: list[dict[str, Any]], target: float, out: Pa
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
+    """`marinejax bench training`; `trace_cache` as `train`'s (the CLI passes its folder)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     from marinejax.cli import parse_key_values
@@ -172,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for seed in range(args.seeds):
             row = run_seed(env_name, seed, out_dir / env_name / f"seed-{seed}", ppo, env_overrides,
-                           args.target_error, args.episodes, log=lambda m: print(m, flush=True))
+                           args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache)
             print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m, success {100 * row['success_rate']:.0f} %, "
                   f"training {row['wall_time_s']:.0f} s", flush=True)
             rows.append(row)

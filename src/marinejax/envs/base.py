@@ -154,9 +154,10 @@ class MarineEnv(Env):
                 f"window ({self.error_window_description}); use a longer episode_length"
             )
         # Traced once per env and reused by every caller's jit (Brax's training and evaluation
-        # loops, tests): inlined into each caller, the MJX step and the task logic are retraced by
-        # each, about a second apiece.
+        # loops, the auto-reset inside every step, tests): inlined into each caller, the MJX step
+        # and the task logic are retraced by each, about a second apiece for the step.
         self._jit_transition = jax.jit(self._transition)
+        self._jit_reset = jax.jit(self._reset)
 
     @classmethod
     def default_config(cls) -> EnvConfig:
@@ -190,6 +191,9 @@ class MarineEnv(Env):
     def reset(self, rng: jax.Array, params: PlantParams | None = None) -> State:
         """A new episode: target, start pose, current and (unless `params` is given) the physical
         parameters drawn from `rng`."""
+        return self._jit_reset(rng, params)
+
+    def _reset(self, rng: jax.Array, params: PlantParams | None) -> State:
         rng, k_task, k_pose, k_cur, k_params, k_sensors = jax.random.split(rng, 6)
         task = self._sample_task(k_task)
         if params is None:
@@ -221,9 +225,17 @@ class MarineEnv(Env):
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
-        # only the env's own info keys go through the jitted transition: wrappers add others
-        info = {k: state.info[k] for k in self._state_shape.info}
-        ps, obs, reward, done, new, info = self._jit_transition(state.pipeline_state, info, action)
+        return self._apply_transition(state, self._jit_transition(*self._transition_inputs(state, action)))
+
+    # step = _transition_inputs -> _transition -> _apply_transition; the batched path of
+    # `envs/trace_cache.py` runs the same three on a leading batch axis.
+    def _transition_inputs(self, state: State, action: jax.Array) -> tuple[PlantState, dict, jax.Array]:
+        # only the env's own info keys go through the transition: wrappers add others
+        return state.pipeline_state, {k: state.info[k] for k in self._state_shape.info}, action
+
+    @staticmethod
+    def _apply_transition(state: State, out: tuple) -> State:
+        ps, obs, reward, done, new, info = out
         # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
         metrics = {**state.metrics, **new}
         return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info={**state.info, **info})

@@ -7,6 +7,7 @@ env's reset with a fresh key instead; `wrap_for_training` is the `wrap_env_fn` t
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Callable, Optional
 
 import jax
@@ -14,6 +15,8 @@ import jax.numpy as jnp
 from brax.envs.base import Env, State, Wrapper
 from brax.envs.wrappers.training import EpisodeWrapper, VmapWrapper
 
+from marinejax.envs.base import MarineEnv
+from marinejax.envs.trace_cache import BatchedEnv
 from marinejax.errors import UserError
 
 # Keys of State.info that describe the transition that just happened, kept through a reset.
@@ -65,15 +68,25 @@ def wrap_for_training(
     episode_length: int = 1000,
     action_repeat: int = 1,
     randomization_fn: Optional[Callable] = None,
+    trace_cache: str | Path | None = None,
 ) -> Wrapper:
     """Same signature as `brax.envs.training.wrap`, with `FullResetWrapper` instead of AutoReset:
     pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`. Randomization is per episode, drawn by
-    the env's plant (`randomization.enabled`), so Brax's per-slot `randomization_fn` is refused."""
+    the env's plant (`randomization.enabled`), so Brax's per-slot `randomization_fn` is refused.
+
+    A `MarineEnv` is batched by `BatchedEnv`; with `trace_cache` (a folder) its batched reset and
+    step are kept there between processes (`envs/trace_cache.py`), so that a second run skips
+    tracing them: `functools.partial(wrap_for_training, trace_cache=folder)`."""
     if randomization_fn is not None:
         raise UserError(
             "marinejax envs randomize their physics per episode: make the env with "
             "randomization={'enabled': True} instead of passing a Brax randomization_fn"
         )
-    env = VmapWrapper(env)
+    if isinstance(env, MarineEnv):
+        env = BatchedEnv(env, trace_cache)
+    elif trace_cache is not None:
+        raise UserError(f"trace_cache needs a marinejax env (a MarineEnv, unwrapped), got {type(env).__name__}")
+    else:
+        env = VmapWrapper(env)
     env = EpisodeWrapper(env, episode_length, action_repeat)
     return FullResetWrapper(env)

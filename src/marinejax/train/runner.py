@@ -109,6 +109,7 @@ def train(
     target_error: float | None = None,
     stop_at_target: bool = True,
     devices: int | None = None,
+    trace_cache: Path | None = None,
 ) -> dict[str, Any]:
     """Train `config` into `run_dir`; resume from its newest checkpoint when `resume`.
 
@@ -123,6 +124,9 @@ def train(
 
     `devices` local devices share the env batch (Brax PPO's pmap; gradients are averaged over them);
     None uses all of `jax.local_devices()`. `num_envs` must be a multiple of it.
+
+    `trace_cache` (a folder) keeps the env's traced batched reset and step between runs
+    (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.
     """
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
     from brax.training.agents.ppo import train as ppo_train
@@ -191,7 +195,7 @@ def train(
             environment=env,
             num_timesteps=remaining,
             episode_length=env.config.episode_length,
-            wrap_env_fn=wrap_for_training,
+            wrap_env_fn=functools.partial(wrap_for_training, trace_cache=trace_cache),
             num_envs=ppo.num_envs,
             unroll_length=ppo.unroll_length,
             batch_size=ppo.batch_size,
