@@ -225,17 +225,9 @@ class MarineEnv(Env):
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
-        return self._apply_transition(state, self._jit_transition(*self._transition_inputs(state, action)))
-
-    # step = _transition_inputs -> _transition -> _apply_transition; the batched path of
-    # `envs/trace_cache.py` runs the same three on a leading batch axis.
-    def _transition_inputs(self, state: State, action: jax.Array) -> tuple[PlantState, dict, jax.Array]:
-        # only the env's own info keys go through the transition: wrappers add others
-        return state.pipeline_state, {k: state.info[k] for k in self._state_shape.info}, action
-
-    @staticmethod
-    def _apply_transition(state: State, out: tuple) -> State:
-        ps, obs, reward, done, new, info = out
+        # only the env's own info keys go through the jitted transition: wrappers add others
+        info = {k: state.info[k] for k in self._state_shape.info}
+        ps, obs, reward, done, new, info = self._jit_transition(state.pipeline_state, info, action)
         # Update in place: wrappers (Brax's EvalWrapper) may have added keys that must survive.
         metrics = {**state.metrics, **new}
         return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info={**state.info, **info})

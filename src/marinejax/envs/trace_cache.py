@@ -1,17 +1,19 @@
-"""Batched reset and step of a marinejax env, kept on disk as `jax.export` artifacts between processes.
+"""The training env's batched reset and step, kept on disk as `jax.export` artifacts between processes.
 
 A fresh training process spends most of the time before its first evaluation tracing the env's reset
-and step, batching them (vmap) and lowering them to StableHLO: about 2 s on a 2-core CPU. JAX's
-persistent compilation cache cannot skip that work, because it looks compiled programs up by their
-lowered text. `BatchedEnv` (the training wrappers' batch layer) therefore exports the batched
-functions to `cache_dir` the first time and, in a later process, loads and calls them untraced.
+and step, batching them (vmap), wrapping them for training and lowering them to StableHLO: about 2 s
+on a 2-core CPU. JAX's persistent compilation cache cannot skip that work, because it looks compiled
+programs up by their lowered text. `TraceCache`, the outermost training wrapper, therefore exports
+the wrapped reset and step to `cache_dir` the first time and, in a later process, loads and calls
+them untraced.
 
 An artifact is used only when everything the traced program depends on is unchanged. Its key hashes:
-- the env's class, its config and its public plain attributes (e.g. a tracking task's `kind`);
+- the classes of the env and its wrappers, the env's config, and their public plain attributes (a
+  tracking task's `kind`, the episode length);
 - the plant's constants (the MuJoCo model, every array of the MJX model, fluid and thruster parameters);
 - the input shapes and pytree structure (so each batch size has its own artifact);
-- the marinejax source files (*.py), the jax, jaxlib and mujoco versions, the JAX platform and the
-  JAX settings that change traced numerics (x64, PRNG implementation, matmul precision).
+- the marinejax source files (*.py), the jax, jaxlib, mujoco and brax versions, the JAX platform and
+  the JAX settings that change traced numerics (x64, PRNG implementation, matmul precision).
 Files are written atomically, so concurrent runs may share one directory.
 """
 
@@ -33,6 +35,8 @@ from brax.envs.base import State, Wrapper
 from jax import export
 
 import marinejax
+from marinejax.envs.base import MarineEnv
+from marinejax.errors import UserError
 
 _JAX_SETTINGS = ("jax_enable_x64", "jax_default_prng_impl", "jax_threefry_partitionable", "jax_default_matmul_precision")
 _SUFFIX = ".jaxexport"
@@ -56,19 +60,23 @@ def _source_digest() -> str:
 
 
 def env_fingerprint(env: Any) -> str:
-    """sha256 of what an env's traced reset and step depend on besides their inputs (module docstring).
+    """sha256 of what a (wrapped) env's traced reset and step depend on besides their inputs
+    (module docstring).
 
-    `env` is a `MarineEnv`. Of its own attributes, the public ones holding plain values (str, int,
-    float, bool, None, tuples) enter with the config: a task whose constructor takes more must store
-    it so, or in its config."""
+    `env` is a `MarineEnv` or Brax wrappers over one. Of the env and of each wrapper, the public
+    attributes holding plain values (str, int, float, bool, None, tuples) enter with the classes and
+    the config: a task or wrapper whose constructor takes more must store it so, or in its config."""
+    layers = []
+    while isinstance(env, Wrapper):
+        layers.append(env)
+        env = env.env
+    if not isinstance(env, MarineEnv):
+        raise UserError(f"the trace cache needs a marinejax env (a MarineEnv, or wrappers over one), got {type(env).__name__}")
     h = hashlib.sha256()
-    cls = type(env)
-    attributes = {k: v for k, v in vars(env).items()
-                  if not k.startswith("_") and isinstance(v, (str, int, float, bool, type(None), tuple))}
     settings = {name: str(getattr(jax.config, name, None)) for name in _JAX_SETTINGS}
-    versions = {p: _version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx")}
-    h.update(repr((cls.__module__, cls.__qualname__, repr(env.config), sorted(attributes.items()),
-                   settings, versions, jax.default_backend(), _source_digest())).encode())
+    versions = {p: _version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax")}
+    h.update(repr(([_describe(layer) for layer in layers], _describe(env), repr(env.config), settings, versions,
+                   jax.default_backend(), _source_digest())).encode())
     model = env.vehicle.mj_model
     mjb = np.empty(mujoco.mj_sizeModel(model), np.uint8)
     mujoco.mj_saveModel(model, None, mjb)
@@ -80,6 +88,14 @@ def env_fingerprint(env: Any) -> str:
         h.update(f"{a.dtype}{a.shape}".encode())
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+def _describe(obj: Any) -> tuple:
+    """An object's class and its public attributes that hold plain values."""
+    cls = type(obj)
+    plain = {k: v for k, v in vars(obj).items()
+             if not k.startswith("_") and isinstance(v, (str, int, float, bool, type(None), tuple))}
+    return cls.__module__, cls.__qualname__, sorted(plain.items())
 
 
 def _structure(treedef: Any) -> str:
@@ -108,29 +124,24 @@ def _write_atomically(path: Path, data: bytes) -> None:
         raise
 
 
-class BatchedEnv(Wrapper):
-    """Brax's `VmapWrapper` for a `MarineEnv`: `reset(rngs)` and `step(states, actions)` on a leading
-    batch axis, the same numbers as `jax.vmap` of the env's own. With `cache_dir`, the batched
-    functions are exported there as `jax.export` artifacts on first use and loaded from there by
-    later processes (module docstring); with None, nothing is written."""
+class TraceCache(Wrapper):
+    """A batched env (the training wrappers over a `MarineEnv`) whose `reset` and `step` are kept in
+    `cache_dir` as `jax.export` artifacts: exported on first use, loaded and called untraced by later
+    processes (module docstring). The numbers are those of the wrapped env's own functions."""
 
-    def __init__(self, env: Any, cache_dir: str | Path | None = None):
+    def __init__(self, env: Wrapper, cache_dir: str | Path):
         super().__init__(env)
-        self.cache_dir = Path(cache_dir) if cache_dir is not None else None
+        self.cache_dir = Path(cache_dir)
         self._fingerprint: str | None = None
-        self._calls: dict[str, Callable[..., Any]] = {}
+        self._calls: dict[str, Callable[[list], Any]] = {}
 
     def reset(self, rng: jax.Array) -> State:
-        return self._batched("reset", jax.vmap(self.env.reset), (rng,))
+        return self._cached("reset", self.env.reset, (rng,))
 
     def step(self, state: State, action: jax.Array) -> State:
-        env = self.env
-        out = self._batched("step", jax.vmap(env._jit_transition), env._transition_inputs(state, action))
-        return env._apply_transition(state, out)
+        return self._cached("step", self.env.step, (state, action))
 
-    def _batched(self, name: str, fn: Callable[..., Any], args: tuple) -> Any:
-        if self.cache_dir is None:
-            return fn(*args)
+    def _cached(self, name: str, fn: Callable[..., Any], args: tuple) -> Any:
         leaves, in_tree = jax.tree.flatten(args)
         avals = [jax.typeof(x) for x in leaves]
         if self._fingerprint is None:

@@ -15,8 +15,7 @@ import jax.numpy as jnp
 from brax.envs.base import Env, State, Wrapper
 from brax.envs.wrappers.training import EpisodeWrapper, VmapWrapper
 
-from marinejax.envs.base import MarineEnv
-from marinejax.envs.trace_cache import BatchedEnv
+from marinejax.envs.trace_cache import TraceCache
 from marinejax.errors import UserError
 
 # Keys of State.info that describe the transition that just happened, kept through a reset.
@@ -74,19 +73,15 @@ def wrap_for_training(
     pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`. Randomization is per episode, drawn by
     the env's plant (`randomization.enabled`), so Brax's per-slot `randomization_fn` is refused.
 
-    A `MarineEnv` is batched by `BatchedEnv`; with `trace_cache` (a folder) its batched reset and
-    step are kept there between processes (`envs/trace_cache.py`), so that a second run skips
-    tracing them: `functools.partial(wrap_for_training, trace_cache=folder)`."""
+    With `trace_cache` (a folder) the wrapped reset and step are kept there between processes
+    (`envs/trace_cache.py`), so that a second run skips tracing them:
+    `functools.partial(wrap_for_training, trace_cache=folder)`."""
     if randomization_fn is not None:
         raise UserError(
             "marinejax envs randomize their physics per episode: make the env with "
             "randomization={'enabled': True} instead of passing a Brax randomization_fn"
         )
-    if isinstance(env, MarineEnv):
-        env = BatchedEnv(env, trace_cache)
-    elif trace_cache is not None:
-        raise UserError(f"trace_cache needs a marinejax env (a MarineEnv, unwrapped), got {type(env).__name__}")
-    else:
-        env = VmapWrapper(env)
+    env = VmapWrapper(env)
     env = EpisodeWrapper(env, episode_length, action_repeat)
-    return FullResetWrapper(env)
+    env = FullResetWrapper(env)
+    return env if trace_cache is None else TraceCache(env, trace_cache)
