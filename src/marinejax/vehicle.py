@@ -252,11 +252,12 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     if not (SUPPLY_VOLTAGE_RANGE[0] <= volt <= SUPPLY_VOLTAGE_RANGE[1]):
         raise UserError(f"{where}: marinejax:thruster:voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
     thrusters = ThrusterParams(
-        allocation=jnp.asarray(allocation_matrix(positions, np.array(directions))),
+        # float32 cast on the host: converting a float64 value to JAX's float32 compiles a program
+        allocation=jnp.asarray(np.float32(allocation_matrix(positions, np.array(directions)))),
         curve=t200_curve(),
-        gain=jnp.full(len(ids), thruster_file.get("thruster_gain", 1.0)),
-        time_constant=jnp.asarray(thruster_file.get("thruster_time_constant", tc)),
-        voltage=jnp.asarray(volt),
+        gain=jnp.asarray(np.full(len(ids), thruster_file.get("thruster_gain", 1.0), np.float32)),
+        time_constant=jnp.asarray(np.float32(thruster_file.get("thruster_time_constant", tc))),
+        voltage=jnp.asarray(np.float32(volt)),
     )
     sys = VehicleSystem(
         model=mjx.put_model(m),

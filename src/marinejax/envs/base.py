@@ -171,7 +171,7 @@ class MarineEnv(Env):
 
     @functools.cached_property
     def _state_shape(self) -> State:
-        return jax.eval_shape(self.reset, jax.random.PRNGKey(0))
+        return jax.eval_shape(lambda: self.reset(jax.random.PRNGKey(0)))
 
     @property
     def observation_size(self) -> int | dict[str, tuple[int, ...]]:

@@ -62,7 +62,8 @@ class HydroParams:
                 raise UserError(f"{source}: '{name}' must be >= 0 (positive magnitudes), got {arr.tolist()}")
             if name in _POSITIVE and np.any(arr <= 0):
                 raise UserError(f"{source}: '{name}' must be > 0, got {arr.tolist()}")
-            arrays[name] = jnp.asarray(arr if size > 1 else arr[0])
+            # cast on the host: a float64 array given to JAX is converted by a compiled program
+            arrays[name] = jnp.asarray(np.float32(arr) if size > 1 else np.float32(arr[0]))
         return cls(**arrays)
 
     def replace_values(self, **changes: object) -> "HydroParams":

@@ -16,6 +16,7 @@ import dataclasses
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from marinejax.errors import UserError
@@ -83,7 +84,7 @@ class Plant:
         self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
         self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
         self.action_size = self.vehicle.num_thrusters if config.action_mode == "thrusters" else 6
-        self._wrench_scale = jnp.asarray(config.wrench_scale, jnp.float32)
+        self._wrench_scale = jnp.asarray(np.asarray(config.wrench_scale, np.float32))
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
         # The MJX step is traced once per plant and reused wherever it is called (training rollout,
         # evaluation, tests): inlined into each caller's jit it is retraced by each, seconds apiece.
