@@ -8,7 +8,7 @@
 
 Every command keeps JAX's persistent compilation cache in the user's cache directory
 (`$XDG_CACHE_HOME/marinejax/jax-compilation-cache`, else `~/.cache/...`), and training keeps the
-envs' traced batched reset and step beside it (`.../marinejax/traced-envs`, `envs/trace_cache.py`),
+training env's traced reset and step beside it (`.../marinejax/traced-envs`, `envs/trace_cache.py`),
 so that a second identical run skips most of its tracing and compilation; `--no-compile-cache`
 switches both off for one command.
 """
@@ -37,7 +37,7 @@ def compile_cache_dir() -> Path:
 
 
 def trace_cache_dir() -> Path:
-    """Where the CLI keeps the envs' traced batched reset and step (`envs/trace_cache.py`), beside
+    """Where the CLI keeps the training env's traced reset and step (`envs/trace_cache.py`), beside
     the compilation cache: `.../marinejax/traced-envs`."""
     return compile_cache_dir().parent / "traced-envs"
 

@@ -14,7 +14,8 @@ An artifact is used only when everything the traced program depends on is unchan
 - the input shapes and pytree structure (so each batch size has its own artifact);
 - the marinejax source files (*.py), the jax, jaxlib, mujoco and brax versions, the JAX platform and
   the JAX settings that change traced numerics (x64, PRNG implementation, matmul precision).
-Files are written atomically, so concurrent runs may share one directory.
+Files are written atomically, so concurrent runs may share one directory. Only the CPU backend uses
+the cache (the one it was tested on); on a GPU the env is traced in every process as before.
 """
 
 from __future__ import annotations
@@ -108,8 +109,7 @@ def _load_lapack() -> None:
     """Make jaxlib load its CPU LAPACK kernels, as lowering any LAPACK op does. A deserialized export
     that calls them (MJX's Cholesky solve) in a process that never lowered one jumps to a null
     kernel pointer and crashes (jax issue #29610)."""
-    if jax.default_backend() == "cpu":
-        jax.jit(jax.numpy.linalg.cholesky).lower(jax.ShapeDtypeStruct((1, 1), np.float32))
+    jax.jit(jax.numpy.linalg.cholesky).lower(jax.ShapeDtypeStruct((1, 1), np.float32))
 
 
 def _write_atomically(path: Path, data: bytes) -> None:
@@ -142,6 +142,8 @@ class TraceCache(Wrapper):
         return self._cached("step", self.env.step, (state, action))
 
     def _cached(self, name: str, fn: Callable[..., Any], args: tuple) -> Any:
+        if jax.default_backend() != "cpu":  # tested on CPU only: elsewhere the env is traced as usual
+            return fn(*args)
         leaves, in_tree = jax.tree.flatten(args)
         avals = [jax.typeof(x) for x in leaves]
         if self._fingerprint is None:

@@ -125,7 +125,7 @@ def train(
     `devices` local devices share the env batch (Brax PPO's pmap; gradients are averaged over them);
     None uses all of `jax.local_devices()`. `num_envs` must be a multiple of it.
 
-    `trace_cache` (a folder) keeps the env's traced batched reset and step between runs
+    `trace_cache` (a folder) keeps the training env's traced reset and step between runs
     (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.
     """
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
