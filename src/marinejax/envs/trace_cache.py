@@ -25,7 +25,7 @@ import os
 import pickle
 import re
 import tempfile
-from importlib.metadata import PackageNotFoundError, version
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any, Callable
 
@@ -41,13 +41,6 @@ from marinejax.errors import UserError
 
 _JAX_SETTINGS = ("jax_enable_x64", "jax_default_prng_impl", "jax_threefry_partitionable", "jax_default_matmul_precision")
 _SUFFIX = ".jaxexport"
-
-
-def _version(package: str) -> str:
-    try:
-        return version(package)
-    except PackageNotFoundError:
-        return "-"
 
 
 def _source_digest() -> str:
@@ -75,7 +68,7 @@ def env_fingerprint(env: Any) -> str:
         raise UserError(f"the trace cache needs a marinejax env (a MarineEnv, or wrappers over one), got {type(env).__name__}")
     h = hashlib.sha256()
     settings = {name: str(getattr(jax.config, name, None)) for name in _JAX_SETTINGS}
-    versions = {p: _version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax")}
+    versions = {p: version(p) for p in ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax")}
     h.update(repr(([_describe(layer) for layer in layers], _describe(env), repr(env.config), settings, versions,
                    jax.default_backend(), _source_digest())).encode())
     model = env.vehicle.mj_model
@@ -157,8 +150,8 @@ class TraceCache(Wrapper):
     @staticmethod
     def _load_or_export(path: Path, fn: Callable[..., Any], in_tree: Any, avals: list) -> Callable[[list], Any]:
         record = None
-        _load_lapack()
         if path.exists():
+            _load_lapack()  # exporting lowers the LAPACK ops itself, which loads them
             try:
                 record = pickle.loads(path.read_bytes())
                 exported = export.deserialize(bytearray(record["exported"]))
