@@ -13,7 +13,7 @@ import pytest
 import marinejax
 from marinejax.controllers import LQRConfig, PIDConfig, hover_model, inverse_thrust, lqr_controller, lqr_gain, pid_controller, pid_gains
 from marinejax.errors import UserError
-from marinejax.thrusters import t200_thrust
+from marinejax.actuators.t200 import t200_thrust
 from marinejax.train.statistics import rollout_controller, summarize
 
 
@@ -39,13 +39,13 @@ def test_gains_place_a_triple_pole_at_minus_the_bandwidth(heavy):
 
 def test_inverse_thrust_inverts_the_t200_curve(heavy):
     throttle = inverse_thrust(heavy.plant)
-    p = heavy.plant.nominal_params()
+    p = heavy.plant.nominal_params().actuators[0]
     forces = jnp.linspace(-30.0, 35.0, 27)
-    u = throttle(jnp.broadcast_to(forces[:, None], (27, heavy.vehicle.num_thrusters)))
-    back = t200_thrust(heavy.vehicle.sys.thrusters.curve, u, p.voltage) * p.thruster_gain
+    u = throttle(jnp.broadcast_to(forces[:, None], (27, heavy.vehicle.num_actuators)))
+    back = t200_thrust(heavy.vehicle.sys.actuators[0].design.curve, u, p.voltage) * p.gain
     np.testing.assert_allclose(back, np.broadcast_to(forces[:, None], back.shape), atol=0.05)
-    assert float(throttle(jnp.full(heavy.vehicle.num_thrusters, 1e3))[0]) == 1.0
-    assert float(throttle(jnp.full(heavy.vehicle.num_thrusters, -1e3))[0]) == -1.0
+    assert float(throttle(jnp.full(heavy.vehicle.num_actuators, 1e3))[0]) == 1.0
+    assert float(throttle(jnp.full(heavy.vehicle.num_actuators, -1e3))[0]) == -1.0
 
 
 def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
@@ -58,7 +58,7 @@ def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
         ad, bd = hover_model(env)
         assert np.abs(np.linalg.eigvals(ad - bd @ k)).max() < 1.0  # stable closed loop
         assert np.abs(np.linalg.eigvals(ad)).max() >= 1.0 - 1e-9  # the open loop is not (integrators, free position)
-        alloc = np.asarray(env.vehicle.sys.thrusters.allocation)
+        alloc = np.asarray(env.vehicle.sys.actuators[0].design.allocation)
         pitch_moment = alloc[4] @ k  # pitch moment the feedback commands per unit of each state
         if vehicle == "BlueROV2":
             np.testing.assert_allclose(pitch_moment, 0.0, atol=1e-6)

@@ -28,7 +28,7 @@ def perturbed(plant: Plant, seed: int = 0):
     return nom.replace(
         hydro=h.replace(added_mass=f(h.added_mass), linear_damping=f(h.linear_damping), quadratic_damping=f(h.quadratic_damping),
                         volume=h.volume * 1.003, center_of_buoyancy=h.center_of_buoyancy + jnp.array([0.003, -0.002, 0.004])),
-        time_constant=jnp.asarray(0.08),
+        actuators=(nom.actuators[0].replace(time_constant=jnp.asarray(0.08)),),
     )
 
 
@@ -163,7 +163,7 @@ def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(t
     np.testing.assert_allclose(data["added_mass"], np.asarray(true.hydro.added_mass), rtol=0.1)  # accuracy: the test above
     env = marinejax.make("BlueROV2Heavy-StationKeeping", param_set=str(tmp_path / "fitted.json"))
     np.testing.assert_allclose(np.asarray(env.plant.nominal_params().hydro.added_mass), data["added_mass"], rtol=1e-6)
-    np.testing.assert_allclose(float(env.plant.nominal_params().time_constant), data["thruster_time_constant"], rtol=1e-6)
+    np.testing.assert_allclose(float(env.plant.nominal_params().actuators[0].time_constant), data["thruster_time_constant"], rtol=1e-6)
     state = jax.jit(env.step)(jax.jit(env.reset)(jax.random.PRNGKey(0)), jnp.full(8, 0.3))  # it simulates
     assert np.all(np.isfinite(np.asarray(state.obs)))
     bad = run("identify", "missing.csv", "--vehicle", "bluerov2_heavy")

@@ -42,7 +42,7 @@ def make_state(vehicle, rpy=None, velocity=None, angular_velocity=None):
         quaternion=jnp.asarray(quat, jnp.float32),
         velocity=jnp.asarray(np.zeros((B, 3)) if velocity is None else velocity, jnp.float32),
         angular_velocity=jnp.asarray(np.zeros((B, 3)) if angular_velocity is None else angular_velocity, jnp.float32),
-        thrust=jnp.zeros((B, vehicle.num_thrusters)),
+        actuators=jnp.zeros((B, vehicle.num_actuators)),
     )
 
 
@@ -168,7 +168,7 @@ def test_predictor_acceleration_equals_mujoco_forward_dynamics(heavy):
     sys = heavy.sys
     state = mj.initial_state(heavy, quaternion=(0.9, 0.2, 0.3, 0.1), velocity=(0.5, -0.2, 0.3), angular_velocity=(0.3, -0.4, 0.5))
     ps = to_physics(sys, state)
-    thrust = jnp.linspace(-20.0, 30.0, heavy.num_thrusters)
+    thrust = jnp.linspace(-20.0, 30.0, heavy.num_actuators)
     xfrc, qacc = model_acceleration(sys, ps.data.qpos, ps.data.qvel, thrust, jnp.zeros(6), jnp.array([0.1, 0.2, 0.0]))
     data = mjx.forward(sys.model, ps.data.replace(xfrc_applied=ps.data.xfrc_applied.at[sys.body_id].set(xfrc)))
     np.testing.assert_allclose(np.asarray(qacc), np.asarray(data.qacc), atol=2e-5)
@@ -238,7 +238,7 @@ def thruster_runs(heavy):
         quaternion=jnp.asarray(quat, jnp.float32),
         velocity=jnp.zeros((4, 3)),
         angular_velocity=jnp.zeros((4, 3)),
-        thrust=jnp.zeros((4, 8)),
+        actuators=jnp.zeros((4, 8)),
     )
     return cmd, state, mj.rollout(heavy, cmd, state)  # defaults: 50 ms control, one midpoint step
 
@@ -265,10 +265,11 @@ def test_up_command_rises(thruster_runs):
 
 def test_thrust_follows_first_order_lag(heavy, thruster_runs):
     _, _, traj = thruster_runs
-    from marinejax.thrusters import t200_thrust
+    from marinejax.actuators.t200 import t200_thrust
 
-    target = float(t200_thrust(heavy.sys.thrusters.curve, jnp.float32(0.3), jnp.float32(16.0)))
-    tau = float(heavy.sys.thrusters.time_constant)
+    (t200,) = heavy.sys.actuators
+    target = float(t200_thrust(t200.design.curve, jnp.float32(0.3), jnp.float32(16.0)))
+    tau = float(t200.params.time_constant)
     # after one control step (0.05 s) the lag has covered 1 - exp(-0.05 / tau)
     assert float(traj.thrust[2, 0, 4]) == pytest.approx(target * (1 - math.exp(-0.05 / tau)), rel=1e-3)
     assert float(traj.thrust[2, -1, 4]) == pytest.approx(target, rel=1e-4)

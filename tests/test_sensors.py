@@ -30,7 +30,7 @@ def _state(t):
     yaw = 0.3
     v_world = 0.5 * jnp.array([math.cos(yaw), math.sin(yaw), 0.0])
     return VehicleState(position=jnp.array([1.0, -2.0, -5.0]) + t * v_world, quaternion=quat_from_euler(0.0, 0.0, yaw),
-                        velocity=jnp.array([0.5, 0.0, 0.0]), angular_velocity=jnp.zeros(3), thrust=jnp.zeros(6))
+                        velocity=jnp.array([0.5, 0.0, 0.0]), angular_velocity=jnp.zeros(3), actuators=jnp.zeros(6))
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ def test_both_vehicles_are_listed():
 def test_models_are_free_bodies_without_mujoco_fluid(name, thrusters, mass):
     v = mj.load_vehicle(name)
     m = v.mj_model
-    assert v.num_thrusters == thrusters
+    assert v.num_actuators == thrusters
     assert m.body_mass[1] == pytest.approx(mass)
     assert m.opt.density == 0 and m.opt.viscosity == 0
     assert m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT

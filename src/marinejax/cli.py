@@ -226,7 +226,7 @@ def _excite(args: argparse.Namespace) -> int:
     commands = excitation(plant, args.duration, args.amplitude, args.seed)
     path = write_log(args.out, Log(time=plant.config.control_dt * np.arange(len(commands)), commands=commands))
     print(f"wrote {path}: {len(commands)} commands at {1 / plant.config.control_dt:g} Hz for {args.vehicle} "
-          f"({plant.vehicle.num_thrusters} thrusters, throttles in [-1, 1]); run them, log the state columns, then `marinejax identify`")
+          f"({plant.vehicle.num_actuators} thrusters, throttles in [-1, 1]); run them, log the state columns, then `marinejax identify`")
     return 0
 
 
@@ -241,7 +241,7 @@ def _identify(args: argparse.Namespace) -> int:
     if args.vehicle not in list_vehicles():
         raise UserError(f"unknown vehicle {args.vehicle!r}; available vehicles: {list_vehicles()}")
     plant = Plant(args.vehicle, PlantConfig())
-    log = read_log(args.log, plant.vehicle.num_thrusters)
+    log = read_log(args.log, plant.vehicle.num_actuators)
     ident = Identifier(plant, log, args.window, fit_thruster_gain=args.fit_thruster_gain)
     print(f"{args.log}: {len(log.time)} rows, {len(log.time) * log.dt:.0f} s, {ident.start.velocity.shape[0]} windows of {ident.steps} steps; "
           "fitting (the first iteration compiles) ...")

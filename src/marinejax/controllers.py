@@ -43,7 +43,7 @@ from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
-from marinejax.thrusters import full_thrust, inverse_t200
+from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,9 +79,10 @@ def pid_gains(env: MarineEnv, config: PIDConfig = PIDConfig()) -> PIDGains:
 def inverse_thrust(plant: Plant):
     """throttle(thrust): the inverse of each thruster's steady T200 curve at the plant's nominal voltage
     and gains (thrust in N along the thruster axis → throttle in [−1, 1]; beyond the curve: ±1)."""
-    p = plant.nominal_params()
-    inverse = inverse_t200(plant.vehicle.sys.thrusters.curve, float(p.voltage))
-    gain = jnp.asarray(p.thruster_gain)
+    group = only_t200(plant.sys.actuators, "the classical controllers")
+    p = group.params
+    inverse = inverse_t200(group.design.curve, float(p.voltage))
+    gain = jnp.asarray(p.gain)
     return lambda thrust: inverse(thrust / gain)
 
 
@@ -105,15 +106,17 @@ class _Hover:
 def _hover(env: MarineEnv) -> _Hover:
     if env.config.action_mode != "thrusters":
         raise UserError(f"the classical controllers command thrusters; the env has action_mode={env.config.action_mode!r}")
+    group = only_t200(env.plant.sys.actuators, "the classical controllers")
     p = env.plant.nominal_params()
+    t200 = p.actuators[0]
     g = env.plant.gravity
     return _Hover(
         fields=env.observation_fields(),
         mass=np.concatenate([np.full(3, float(p.mass)), np.asarray(p.inertia, float)]) + np.asarray(p.hydro.added_mass, float),
         damping=np.asarray(p.hydro.linear_damping, float), quadratic=np.asarray(p.hydro.quadratic_damping, float),
         net_up=float(p.net_buoyancy(g)), buoyancy=float(p.hydro.fluid_density * p.hydro.volume * g),
-        cob=np.asarray(p.hydro.center_of_buoyancy, float), allocation=np.asarray(env.vehicle.sys.thrusters.allocation, float),
-        throttle=inverse_thrust(env.plant), max_thrust=full_thrust(env.vehicle.sys.thrusters.curve, p.voltage) * float(np.min(np.asarray(p.thruster_gain))),
+        cob=np.asarray(p.hydro.center_of_buoyancy, float), allocation=np.asarray(group.design.allocation, float),
+        throttle=inverse_thrust(env.plant), max_thrust=full_thrust(group.design.curve, t200.voltage) * float(np.min(np.asarray(t200.gain))),
     )
 
 

@@ -81,7 +81,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
     else:
         mean, std = np.asarray(normalizer.mean, np.float32), np.asarray(normalizer.std, np.float32)
     c = env.config
-    action = (f"throttle per thruster in [-1, 1], order {list(env.vehicle.thruster_names)}" if c.action_mode == "thrusters"
+    action = (env.vehicle.describe_action() if c.action_mode == "thrusters"
               else f"body wrench [Fx, Fy, Fz, Mx, My, Mz] divided by wrench_scale {list(c.wrench_scale)} (N, N m), in [-1, 1]")
     metadata = {
         "marinejax_version": __import__("marinejax").__version__,

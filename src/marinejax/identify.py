@@ -68,7 +68,8 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.frames import quat_from_euler, quat_to_euler
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams
-from marinejax.thrusters import full_thrust, inverse_t200, lag_step, t200_thrust
+from marinejax.actuators.base import lag_step
+from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200, t200_thrust
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,10 +165,11 @@ def excitation(plant: Plant, duration: float = 120.0, amplitude: float = 0.5, se
     dt = plant.config.control_dt
     steps = int(round(duration / dt))
     rng = np.random.default_rng(seed)
-    params = plant.nominal_params()
-    curve = plant.vehicle.sys.thrusters.curve
+    group = only_t200(plant.sys.actuators, "the excitation")
+    params = plant.nominal_params().actuators[0]
+    curve = group.design.curve
     full = full_thrust(curve, params.voltage)
-    alloc = np.asarray(plant.vehicle.sys.thrusters.allocation)
+    alloc = np.asarray(group.design.allocation)
     pinv = np.linalg.pinv(alloc)
     # the largest wrench per axis that keeps every thruster within `amplitude` of full thrust
     axis_max = np.array([amplitude * full / max(np.abs(pinv[:, k]).max(), 1e-9) for k in range(6)])
@@ -209,7 +211,7 @@ def _flatten(params: PlantParams) -> np.ndarray:
     h = params.hydro
     values = {"added_mass": h.added_mass, "linear_damping": h.linear_damping, "quadratic_damping": h.quadratic_damping,
               "volume": h.volume, "center_of_buoyancy": h.center_of_buoyancy,
-              "thruster_gain": jnp.mean(params.thruster_gain), "time_constant": params.time_constant}
+              "thruster_gain": jnp.mean(params.actuators[0].gain), "time_constant": params.actuators[0].time_constant}
     return np.concatenate([np.atleast_1d(np.asarray(values[name], float)) for name, *_ in _FIT])
 
 
@@ -221,8 +223,9 @@ def _unflatten(base: PlantParams, x: jnp.ndarray) -> PlantParams:
     hydro = base.hydro.replace(added_mass=out["added_mass"], linear_damping=out["linear_damping"],
                                quadratic_damping=out["quadratic_damping"], volume=out["volume"],
                                center_of_buoyancy=out["center_of_buoyancy"])
-    return base.replace(hydro=hydro, thruster_gain=jnp.full_like(base.thruster_gain, out["thruster_gain"]),
-                        time_constant=out["time_constant"])
+    (t200,) = base.actuators
+    t200 = t200.replace(gain=jnp.full_like(t200.gain, out["thruster_gain"]), time_constant=out["time_constant"])
+    return base.replace(hydro=hydro, actuators=(t200,))
 
 
 _SCALE = np.concatenate([s for _, _, s, _ in _FIT])
@@ -254,8 +257,9 @@ class Identifier:
     def __init__(self, plant: Plant, log: Log, window: float = 1.0, fit_thruster_gain: bool = False):
         if log.quaternion is None or log.velocity is None or log.angular_velocity is None:
             raise UserError("identification needs the attitude (qw..qz), body velocity (vx_mps..) and angular velocity (wx_radps..) columns")
-        if log.commands.shape[1] != plant.vehicle.num_thrusters:
-            raise UserError(f"the log has {log.commands.shape[1]} thruster columns; vehicle {plant.vehicle.name!r} has {plant.vehicle.num_thrusters}")
+        only_t200(plant.sys.actuators, "identification")
+        if log.commands.shape[1] != plant.vehicle.num_actuators:
+            raise UserError(f"the log has {log.commands.shape[1]} thruster columns; vehicle {plant.vehicle.name!r} has {plant.vehicle.num_actuators}")
         if abs(log.dt - plant.config.control_dt) > 1e-3 * plant.config.control_dt:
             raise UserError(f"the log's period {log.dt:.4f} s differs from the control period {plant.config.control_dt} s; "
                             "resample the log or pass --env control_dt=...")
@@ -280,7 +284,7 @@ class Identifier:
         self.start_euler = jnp.asarray(euler[starts])
         self.start = VehicleState(position=jnp.zeros((n, 3)), quaternion=jnp.asarray(q[starts]),
                                   velocity=jnp.asarray(log.velocity[starts]), angular_velocity=jnp.asarray(log.angular_velocity[starts]),
-                                  thrust=jnp.zeros((n, plant.vehicle.num_thrusters)))
+                                  actuators=jnp.zeros((n, plant.vehicle.num_actuators)))
         self.all_commands = jnp.asarray(log.commands)
         self.start_rows = jnp.asarray(starts)
         self.commands = jnp.asarray(log.commands[idx - 1])  # the command of row k acts from row k to k + 1
@@ -304,12 +308,13 @@ class Identifier:
         plant, key = self.plant, jax.random.PRNGKey(0)
         # the thrusters' lag state at each window start: the lag filter run over the whole command
         # history from rest (it does not depend on the rigid-body motion)
-        curve, dt = plant.vehicle.sys.thrusters.curve, plant.config.control_dt / plant.config.substeps
+        curve, dt = plant.sys.actuators[0].design.curve, plant.config.control_dt / plant.config.substeps
+        t200 = params.actuators[0]
 
         def lag(thrust, u):
-            target = t200_thrust(curve, u, params.voltage) * params.thruster_gain
+            target = t200_thrust(curve, u, t200.voltage) * t200.gain
             for _ in range(plant.config.substeps):
-                thrust = lag_step(thrust, target, dt, params.time_constant)
+                thrust = lag_step(thrust, target, dt, t200.time_constant)
             return thrust, thrust
 
         _, history = jax.lax.scan(lag, jnp.zeros(self.all_commands.shape[1]), self.all_commands)
@@ -318,7 +323,7 @@ class Identifier:
         def window(start, euler, offset, thrust, commands):
             quaternion = quat_from_euler(euler[0] + offset[6], euler[1] + offset[7], euler[2])
             start = start.replace(velocity=start.velocity + offset[:3], angular_velocity=start.angular_velocity + offset[3:6],
-                                  quaternion=quaternion, thrust=thrust)
+                                  quaternion=quaternion, actuators=thrust)
             state = plant.init(key, params, start)
             vs = plant.open_loop(params, state, commands, key)[1]
             euler = jax.vmap(quat_to_euler)(vs.quaternion)[:, :2]
@@ -460,7 +465,7 @@ def save_param_set(path: Path | str, vehicle: str, result: FitResult, source: st
         "quadratic_damping": np.asarray(p.hydro.quadratic_damping).tolist(), "volume": float(p.hydro.volume),
         "fluid_density": float(p.hydro.fluid_density), "center_of_buoyancy": np.asarray(p.hydro.center_of_buoyancy).tolist(),
         "mass": float(p.mass), "inertia": np.asarray(p.inertia).tolist(),
-        "thruster_gain": float(np.mean(np.asarray(p.thruster_gain))), "thruster_time_constant": float(p.time_constant),
+        "thruster_gain": float(np.mean(np.asarray(p.actuators[0].gain))), "thruster_time_constant": float(p.actuators[0].time_constant),
         "fit": {n: {"value": float(v), "std": float(s), "determined": bool(d)}
                 for n, v, s, d in zip(result.names, result.values, result.std, result.determined)},
     }

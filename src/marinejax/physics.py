@@ -1,9 +1,10 @@
-"""The physics step: MJX integrates the rigid body, marinejax.hydro supplies the fluid and thruster
-wrench through `data.xfrc_applied` at every substep; plus a batched open-loop rollout.
+"""The physics step: MJX integrates the rigid body, marinejax.hydro supplies the fluid wrench and the
+vehicle's actuators (`marinejax.actuators`) their wrench, through `data.xfrc_applied` at every
+substep; plus a batched open-loop rollout.
 
 Integrators (`integrator=`), both with one MJX evaluation per physics step of h = model.opt.timestep:
 - "midpoint" (default), second order: a cheap predictor (the full acceleration from
-  `hydro_terms`) takes the state and the thruster lag to t + h/2; there the fluid and thruster
+  `hydro_terms`) takes the state and the actuator states to t + h/2; there the fluid and actuator
   wrench is evaluated and `mjx.forward` gives the acceleration of the whole model; the step then
   uses the midpoint velocity and acceleration (explicit midpoint rule, the free joint's quaternion
   advanced by the exact exponential). Error falls 4× when h halves; stable up to 0.05 s.
@@ -13,7 +14,8 @@ Integrators (`integrator=`), both with one MJX evaluation per physics step of h 
 A vehicle is one free body (its free joint at `sys.qpos_adr` / `sys.dof_adr`).
 
 State conventions: position (m) and quaternion (w, x, y, z, body→world) in the world frame (z up);
-linear (m/s) and angular (rad/s) velocity in the body frame FLU; thrust (N) per thruster.
+linear (m/s) and angular (rad/s) velocity in the body frame FLU; actuator states in each kind's
+physical unit (a T200's thrust in N), in action order.
 """
 
 from __future__ import annotations
@@ -27,10 +29,10 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from marinejax import actuators
 from marinejax.errors import UserError
 from marinejax.frames import quat_integrate, quat_to_mat
 from marinejax.hydro.forces import hydro_terms
-from marinejax.thrusters import lag_step, t200_thrust
 from marinejax.vehicle import Vehicle, VehicleSystem
 
 CommandMode = Literal["thrusters", "wrench"]
@@ -66,15 +68,20 @@ class VehicleState:
     quaternion: jnp.ndarray  # (4,) w, x, y, z, body → world
     velocity: jnp.ndarray  # (3,) m/s, body frame FLU
     angular_velocity: jnp.ndarray  # (3,) rad/s, body frame FLU
-    thrust: jnp.ndarray  # (N,) N, thruster forces (state of the lag)
+    actuators: jnp.ndarray  # (N,) actuator states in action order (a T200's thrust in N)
+
+    @property
+    def thrust(self) -> jnp.ndarray:
+        """The actuator states; on a thruster-driven vehicle, the thrust of each thruster (N)."""
+        return self.actuators
 
 
 @struct.dataclass
 class PhysicsState:
-    """What the physics step carries: the MJX data and the lagged thruster forces."""
+    """What the physics step carries: the MJX data and the actuator states."""
 
     data: mjx.Data
-    thrust: jnp.ndarray  # (N,) N
+    actuators: jnp.ndarray  # (N,) in each kind's physical unit
 
 
 @struct.dataclass
@@ -86,7 +93,12 @@ class Trajectory:
     quaternion: jnp.ndarray  # (..., T, 4) w, x, y, z
     velocity: jnp.ndarray  # (..., T, 3) m/s, body FLU
     angular_velocity: jnp.ndarray  # (..., T, 3) rad/s, body FLU
-    thrust: jnp.ndarray  # (..., T, N) N
+    actuators: jnp.ndarray  # (..., T, N) actuator states (a T200's thrust in N)
+
+    @property
+    def thrust(self) -> jnp.ndarray:
+        """The actuator states; on a thruster-driven vehicle, the thrust of each thruster (N)."""
+        return self.actuators
 
 
 def initial_state(
@@ -95,16 +107,17 @@ def initial_state(
     quaternion=(1.0, 0.0, 0.0, 0.0),
     velocity=(0.0, 0.0, 0.0),
     angular_velocity=(0.0, 0.0, 0.0),
-    thrust=None,
+    actuators=None,
 ) -> VehicleState:
-    """A VehicleState (at rest at the origin, level, facing +x, by default). Quaternion is normalised."""
+    """A VehicleState (at rest at the origin, level, facing +x, actuators at 0, by default).
+    Quaternion is normalised."""
     q = jnp.asarray(quaternion, dtype=jnp.float32)
     return VehicleState(
         position=jnp.asarray(position, dtype=jnp.float32),
         quaternion=q / jnp.linalg.norm(q, axis=-1, keepdims=True),
         velocity=jnp.asarray(velocity, dtype=jnp.float32),
         angular_velocity=jnp.asarray(angular_velocity, dtype=jnp.float32),
-        thrust=jnp.zeros(vehicle.num_thrusters) if thrust is None else jnp.asarray(thrust, dtype=jnp.float32),
+        actuators=jnp.zeros(vehicle.num_actuators) if actuators is None else jnp.asarray(actuators, dtype=jnp.float32),
     )
 
 
@@ -115,7 +128,7 @@ def to_physics(sys: VehicleSystem, state: VehicleState) -> PhysicsState:
     qa, da = sys.qpos_adr, sys.dof_adr
     qpos = data.qpos.at[qa : qa + 3].set(state.position).at[qa + 3 : qa + 7].set(state.quaternion)
     qvel = data.qvel.at[da : da + 3].set(rot @ state.velocity).at[da + 3 : da + 6].set(state.angular_velocity)
-    return PhysicsState(data=data.replace(qpos=qpos, qvel=qvel), thrust=state.thrust)
+    return PhysicsState(data=data.replace(qpos=qpos, qvel=qvel), actuators=state.actuators)
 
 
 def from_physics(sys: VehicleSystem, ps: PhysicsState) -> VehicleState:
@@ -128,15 +141,16 @@ def from_physics(sys: VehicleSystem, ps: PhysicsState) -> VehicleState:
         quaternion=quat,
         velocity=rot.T @ ps.data.qvel[da : da + 3],
         angular_velocity=ps.data.qvel[da + 3 : da + 6],
-        thrust=ps.thrust,
+        actuators=ps.actuators,
     )
 
 
-def model_acceleration(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray, thrust: jnp.ndarray,
+def model_acceleration(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray, actuator_state: jnp.ndarray,
                        wrench: jnp.ndarray, current_world: jnp.ndarray):
-    """Fluid and thruster wrench and the resulting acceleration at MJX coordinates (qpos, qvel).
+    """Fluid and actuator wrench and the resulting acceleration at MJX coordinates (qpos, qvel).
 
-    thrust: (N,) N; wrench: (6,) extra body wrench [N, N m]; current_world: (3,) m/s.
+    actuator_state: (N,) in action order; wrench: (6,) extra body wrench [N, N m]; current_world:
+    (3,) m/s.
     Returns (xfrc (6,): the wrench for `data.xfrc_applied`, world frame [force, torque] at the CG;
     qacc (6,): the free joint's acceleration [d/dt of the world-frame velocity (m/s²), body-frame
     angular acceleration (rad/s²)], as MuJoCo's forward dynamics gives it under that wrench).
@@ -145,13 +159,14 @@ def model_acceleration(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray,
     qa, da = sys.qpos_adr, sys.dof_adr
     rot = quat_to_mat(qpos[qa + 3 : qa + 7])
     nu = jnp.concatenate([rot.T @ qvel[da : da + 3], qvel[da + 3 : da + 6]])
+    nu_r = nu - jnp.concatenate([rot.T @ current_world, jnp.zeros(3)])
     terms = hydro_terms(
         sys.hydro,
         model.body_mass[sys.body_id],
         model.body_inertia[sys.body_id],
         rot,
         nu,
-        sys.thrusters.allocation @ thrust + wrench,
+        actuators.wrench(sys.actuators, actuator_state, nu_r) + wrench,
         current_world,
         -model.opt.gravity[2],
     )
@@ -172,38 +187,38 @@ def _advance_free_joint(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray
 def substep(
     sys: VehicleSystem,
     ps: PhysicsState,
-    thrust_target: jnp.ndarray,
+    target: jnp.ndarray,
     wrench: jnp.ndarray,
     current_world: jnp.ndarray,
     integrator: Integrator = DEFAULT_INTEGRATOR,
 ) -> PhysicsState:
-    """One physics step of h = sys.model.opt.timestep: the thrust lags exactly towards `thrust_target`
-    (N, (N,)), the body wrench `wrench` (6,) is added, and the model is integrated by `integrator`
-    (see the module docstring)."""
+    """One physics step of h = sys.model.opt.timestep: the actuator states move towards `target`
+    ((N,), by each kind's own dynamics, e.g. a thruster's exact first-order lag), the body wrench
+    `wrench` (6,) is added, and the model is integrated by `integrator` (see the module docstring)."""
     model, data = sys.model, ps.data
     h = model.opt.timestep
-    tc = sys.thrusters.time_constant
+    groups = sys.actuators
     if integrator == "euler":
-        thrust = lag_step(ps.thrust, thrust_target, h, tc)
-        xfrc, _ = model_acceleration(sys, data.qpos, data.qvel, thrust, wrench, current_world)
+        state = actuators.advance(groups, ps.actuators, target, h)
+        xfrc, _ = model_acceleration(sys, data.qpos, data.qvel, state, wrench, current_world)
         data = data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc))
-        return PhysicsState(data=mjx.step(model, data), thrust=thrust)
+        return PhysicsState(data=mjx.step(model, data), actuators=state)
     if integrator != "midpoint":
         raise UserError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
     # Predictor: the state at t + h/2 from the acceleration at t (hydro_terms holds the whole model).
-    _, qacc0 = model_acceleration(sys, data.qpos, data.qvel, ps.thrust, wrench, current_world)
+    _, qacc0 = model_acceleration(sys, data.qpos, data.qvel, ps.actuators, wrench, current_world)
     qpos_mid = _advance_free_joint(sys, data.qpos, data.qvel, h / 2)
     qvel_mid = data.qvel + (h / 2) * qacc0
-    thrust_mid = lag_step(ps.thrust, thrust_target, h / 2, tc)
-    # Midpoint: fluid and thrust there, rigid-body dynamics by MuJoCo.
-    xfrc, _ = model_acceleration(sys, qpos_mid, qvel_mid, thrust_mid, wrench, current_world)
+    actuators_mid = actuators.advance(groups, ps.actuators, target, h / 2)
+    # Midpoint: fluid and actuator wrench there, rigid-body dynamics by MuJoCo.
+    xfrc, _ = model_acceleration(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
     mid = mjx.forward(model, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)))
     data = mid.replace(
         qpos=_advance_free_joint(sys, data.qpos, qvel_mid, h),
         qvel=data.qvel + h * mid.qacc,
         time=data.time + h,
     )
-    return PhysicsState(data=data, thrust=lag_step(ps.thrust, thrust_target, h, tc))
+    return PhysicsState(data=data, actuators=actuators.advance(groups, ps.actuators, target, h))
 
 
 def with_timestep(sys: VehicleSystem, dt) -> VehicleSystem:
@@ -224,17 +239,17 @@ def control_step(
     """Hold `command` for `substeps` physics steps of sys.model.opt.timestep each, integrated by
     `integrator` ("midpoint" or "euler", see the module docstring).
 
-    mode "thrusters": command (N,) throttles in [−1, 1] (clipped), through the T200 curve and lag.
+    mode "thrusters": command (N,) actuator commands in [−1, 1] (clipped), through the vehicle's
+    actuators (`marinejax.actuators`; for T200s, throttles through the thrust curve and lag).
     mode "wrench": command (6,) body wrench [N, N m], body frame FLU, applied directly.
     current_world: (3,) m/s ocean current, world frame, constant over the control step.
     external: optional (6,) body wrench [N, N m] added in either mode (e.g. a disturbance).
     """
     if mode == "thrusters":
-        thrusters = sys.thrusters
-        target = thrusters.gain * t200_thrust(thrusters.curve, command, thrusters.voltage)
+        target = actuators.targets(sys.actuators, command)
         wrench = jnp.zeros(6)
     elif mode == "wrench":
-        target, wrench = jnp.zeros_like(ps.thrust), command
+        target, wrench = jnp.zeros_like(ps.actuators), command
     else:
         raise UserError(f"unknown command mode {mode!r}; valid: {list(COMMAND_MODES)}")
     if external is not None:
@@ -282,8 +297,9 @@ def rollout(
 ) -> Trajectory:
     """Roll out one vehicle or a batch under a sequence of commands (jit-compiled once per shape).
 
-    commands: (T, n) for one vehicle or (B, T, n) for a batch; n = number of thrusters (mode
-        "thrusters", throttles in [−1, 1]) or 6 (mode "wrench", body wrench in N and N m, FLU).
+    commands: (T, n) for one vehicle or (B, T, n) for a batch; n = number of actuators (mode
+        "thrusters": actuator commands in [−1, 1], `vehicle.describe_action()`; a T200's throttle)
+        or 6 (mode "wrench", body wrench in N and N m, FLU).
     initial: VehicleState, unbatched (shared by the whole batch) or with leading axis B; default at
         rest at the origin.
     control_dt: s per command; each is held for `substeps` physics steps of control_dt/substeps.
@@ -301,8 +317,8 @@ def rollout(
         raise UserError(f"control_dt must be a positive number of seconds, got {control_dt!r}")
     check_integrator(integrator, control_dt / substeps)
     commands = jnp.asarray(commands, dtype=jnp.float32)
-    n = vehicle.num_thrusters if mode == "thrusters" else 6
-    what = f"{n} thruster throttles for {vehicle.name}" if mode == "thrusters" else "a 6-component body wrench"
+    n = vehicle.num_actuators if mode == "thrusters" else 6
+    what = f"{n} actuator commands for {vehicle.name}" if mode == "thrusters" else "a 6-component body wrench"
     if commands.ndim not in (2, 3) or commands.shape[-1] != n:
         raise UserError(f"commands must have shape (T, {n}) or (B, T, {n}) ({what}, mode {mode!r}); got {commands.shape}")
     if not bool(jnp.all(jnp.isfinite(commands))):
@@ -315,8 +331,8 @@ def rollout(
     if current.shape != lead + (3,):
         raise UserError(f"current must have shape (3,) or {lead + (3,)}; got {current.shape}")
     state = initial_state(vehicle) if initial is None else initial
-    if state.thrust.shape[-1] != vehicle.num_thrusters:
-        raise UserError(f"initial.thrust must have {vehicle.num_thrusters} entries for {vehicle.name}; got {state.thrust.shape}")
+    if state.actuators.shape[-1] != vehicle.num_actuators:
+        raise UserError(f"initial.actuators must have {vehicle.num_actuators} entries for {vehicle.name}; got {state.actuators.shape}")
     if batched and state.position.ndim == 1:
         state = jax.tree.map(lambda x: jnp.broadcast_to(x, (lead[0],) + x.shape), state)
     if state.position.shape[:-1] != lead[:-1]:
@@ -329,7 +345,7 @@ def rollout(
         quaternion=states.quaternion,
         velocity=states.velocity,
         angular_velocity=states.angular_velocity,
-        thrust=states.thrust,
+        actuators=states.actuators,
     )
     if check_finite:
         check_trajectory_finite(traj)
@@ -339,7 +355,7 @@ def rollout(
 def check_trajectory_finite(traj: Trajectory) -> None:
     """Raise SimulationDiverged naming the first control step (and batch members) that went non-finite."""
     ok = np.ones(np.shape(traj.position)[:-1], dtype=bool)
-    for leaf in (traj.position, traj.quaternion, traj.velocity, traj.angular_velocity, traj.thrust):
+    for leaf in (traj.position, traj.quaternion, traj.velocity, traj.angular_velocity, traj.actuators):
         ok &= np.all(np.isfinite(np.asarray(leaf)), axis=-1)
     if ok.all():
         return

@@ -43,7 +43,7 @@ def validation_table(vehicle: Vehicle, dt: float = 0.05, seconds: float = 10.0) 
         quaternion=jnp.asarray(quat, jnp.float32),
         velocity=jnp.zeros((n, 3)),
         angular_velocity=jnp.zeros((n, 3)),
-        thrust=jnp.zeros((n, vehicle.num_thrusters)),
+        actuators=jnp.zeros((n, vehicle.num_actuators)),
     )
     traj = rollout(vehicle, wrench, state, control_dt=dt, substeps=1, mode="wrench")
     rows = []

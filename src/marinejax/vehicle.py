@@ -1,15 +1,14 @@
-"""Vehicles: an MJCF model plus its hydrodynamic and thruster parameters, loaded once.
+"""Vehicles: an MJCF model plus its hydrodynamic parameters and its actuators, loaded once.
 
 A vehicle is one MJCF file in `models/mjcf/` (installed as `marinejax/models/mjcf/`). Its
-`<custom>` section carries named parameter sets (`marinejax:<set>:<field>`) and the thruster
-settings (`marinejax:thruster:<field>`); its sites `thruster1..N` give each thruster's position and
-axis. Adding a vehicle means adding one file; no code change.
+`<custom>` section carries named parameter sets (`marinejax:<set>:<field>`) and declares its
+actuators (`marinejax:actuators`, see `marinejax.actuators`), whose sites give each actuator's
+position and axis. Adding a vehicle means adding one file; no code change.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import re
 from importlib import resources
 from pathlib import Path
 
@@ -20,12 +19,11 @@ from flax import struct
 from mujoco import mjx
 
 from marinejax.errors import MissingFileError, UserError
+from marinejax.actuators import ActuatorGroup, declared_groups, load_actuators
 from marinejax.hydro.params import HydroParams
-from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE, T200Curve, allocation_matrix, t200_curve
 
 _PREFIX = "marinejax:"
 _RIGID_FIELDS = {"mass": 1, "inertia": 3}
-_THRUSTER_SITE = re.compile(r"^thruster(\d+)$")
 
 
 def model_dir() -> Path:
@@ -76,31 +74,21 @@ def sensor_settings(vehicle: str) -> dict[str, float]:
 
 
 @struct.dataclass
-class ThrusterParams:
-    """Thruster model of a vehicle (pytree)."""
-
-    allocation: jnp.ndarray  # (6, N) body frame FLU: column i = [e_i; r_i × e_i] (m for the moment arm)
-    curve: T200Curve  # steady thrust table
-    gain: jnp.ndarray  # (N,) multiplicative thrust scale, 1 = nominal
-    time_constant: jnp.ndarray  # () s, first-order lag of the thrust; 0 = instantaneous
-    voltage: jnp.ndarray  # () supply voltage, V
-
-
-@struct.dataclass
 class VehicleSystem:
-    """Everything the jitted physics reads: the MJX model (rigid body, gravity, timestep) and the
-    fluid and thruster parameters. Indices are static Python ints, looked up once at load."""
+    """Everything the jitted physics reads: the MJX model (rigid body, gravity, timestep), the
+    fluid parameters and the actuator groups (in action order). Indices are static Python ints,
+    looked up once at load."""
 
     model: mjx.Model
     hydro: HydroParams
-    thrusters: ThrusterParams
+    actuators: tuple[ActuatorGroup, ...]
     body_id: int = struct.field(pytree_node=False)
     qpos_adr: int = struct.field(pytree_node=False)
     dof_adr: int = struct.field(pytree_node=False)
 
     @property
-    def num_thrusters(self) -> int:
-        return self.thrusters.allocation.shape[1]
+    def num_actuators(self) -> int:
+        return sum(g.size for g in self.actuators)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -113,12 +101,16 @@ class Vehicle:
     source: str  # citation of the parameter set
     mj_model: mujoco.MjModel
     sys: VehicleSystem
-    thruster_names: tuple[str, ...]
+    actuator_names: tuple[str, ...]  # sites of the actuators, in action order
     path: Path  # the MJCF file it was loaded from (rendering reloads it)
 
     @property
-    def num_thrusters(self) -> int:
-        return len(self.thruster_names)
+    def num_actuators(self) -> int:
+        return len(self.actuator_names)
+
+    def describe_action(self) -> str:
+        """What each component of the action means (units, signs, order), from the actuator kinds."""
+        return "; then ".join(g.kind.describe(g.names) for g in self.sys.actuators)
 
 
 def _text(m: mujoco.MjModel, name: str) -> str | None:
@@ -138,11 +130,12 @@ def _numerics(m: mujoco.MjModel, prefix: str) -> dict[str, np.ndarray]:
     return out
 
 
-def _param_sets(m: mujoco.MjModel) -> list[str]:
+def _param_sets(m: mujoco.MjModel, where: str) -> list[str]:
+    not_sets = {prefix for prefix, _ in declared_groups(m, where)} | {"sensors"}
     sets = set()
     for i in range(m.nnumeric):
         parts = m.numeric(i).name.split(":")
-        if len(parts) == 3 and parts[0] + ":" == _PREFIX and parts[1] != "thruster":
+        if len(parts) == 3 and parts[0] + ":" == _PREFIX and parts[1] not in not_sets:
             sets.add(parts[1])
     return sorted(sets)
 
@@ -150,8 +143,9 @@ def _param_sets(m: mujoco.MjModel) -> list[str]:
 _FILE_FIELDS = ("added_mass", "linear_damping", "quadratic_damping", "volume", "fluid_density", "center_of_buoyancy", "mass", "inertia")
 
 
-def _read_param_file(path: Path, vehicle: str) -> tuple[dict[str, np.ndarray], dict[str, float], str]:
-    """A parameter-set JSON file: {vehicle, source, <fields of a set>, thruster_gain, thruster_time_constant}."""
+def _read_param_file(path: Path, vehicle: str, actuator_fields: tuple[str, ...]) -> tuple[dict[str, np.ndarray], dict[str, float], str]:
+    """A parameter-set JSON file: {vehicle, source, <fields of a set>, <the actuator kinds' file
+    fields, e.g. thruster_gain, thruster_time_constant>}."""
     import json
 
     if not path.is_file():
@@ -163,17 +157,18 @@ def _read_param_file(path: Path, vehicle: str) -> tuple[dict[str, np.ndarray], d
     if data.get("vehicle") not in (None, vehicle):
         raise UserError(f"{path} holds parameters of vehicle {data.get('vehicle')!r}, not {vehicle!r}")
     values = {k: np.atleast_1d(np.asarray(data[k], dtype=np.float64)) for k in _FILE_FIELDS if k in data}
-    thrusters = {k: float(data[k]) for k in ("thruster_gain", "thruster_time_constant") if k in data}
-    for k, v in thrusters.items():
+    actuators = {k: float(data[k]) for k in actuator_fields if k in data}
+    for k, v in actuators.items():
         if not (np.isfinite(v) and v >= 0):
             raise UserError(f"{path}: '{k}' must be finite and >= 0, got {v}")
-    return values, thrusters, data.get("source", str(path))
+    return values, actuators, data.get("source", str(path))
 
 
 def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     """Load a vehicle by name (see `list_vehicles()`) or from an MJCF file path ending in .xml,
     with its default or a named parameter set, or a parameter-set .json file (fields of a set plus
-    thruster_gain and thruster_time_constant; `marinejax identify` writes one).
+    its actuators' file fields, e.g. thruster_gain and thruster_time_constant; `marinejax identify`
+    writes one).
 
     Raises UserError (a ValueError) naming the bad value and the valid choices for an unknown vehicle or
     parameter set, and for missing, non-finite or unphysical parameters.
@@ -191,13 +186,19 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     m = mujoco.MjModel.from_xml_path(str(path))
     where = f"vehicle {name!r} ({path.name})"
 
-    sets = _param_sets(m)
+    if m.nbody != 2 or m.body_jntnum[1] != 1 or m.jnt_type[m.body_jntadr[1]] != mujoco.mjtJoint.mjJNT_FREE:
+        raise UserError(f"{where}: expected exactly one body with one free joint")
+    body = 1
+    actuators = load_actuators(m, body, where)
+    sets = _param_sets(m, where)
     default = _text(m, _PREFIX + "default_set")
     param_set = param_set or default
-    file_values, thruster_file = {}, {}
+    file_values, actuator_file = {}, {}
     source = None
     if str(param_set).endswith(".json"):  # a parameter-set file, e.g. written by `marinejax identify`
-        file_values, thruster_file, source = _read_param_file(Path(param_set), name)
+        fields = tuple(f for g in actuators for f in g.kind.file_fields)
+        file_values, actuator_file, source = _read_param_file(Path(param_set), name, fields)
+        actuators = tuple(g.replace(params=g.kind.from_file(g.params, actuator_file)) for g in actuators)
         values = {**_numerics(m, f"{_PREFIX}{default}:"), **file_values}
     elif param_set not in sets:
         raise UserError(f"{where}: unknown parameter set {param_set!r}; available: {sets} or a parameter-set .json file")
@@ -206,9 +207,6 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     rigid = {k: values.pop(k) for k in list(values) if k in _RIGID_FIELDS}
     hydro = HydroParams.from_mapping(values, source=f"{where}, parameter set {param_set!r}")
 
-    if m.nbody != 2 or m.body_jntnum[1] != 1 or m.jnt_type[m.body_jntadr[1]] != mujoco.mjtJoint.mjJNT_FREE:
-        raise UserError(f"{where}: expected exactly one body with one free joint")
-    body = 1
     if not (np.allclose(m.body_ipos[body], 0) and np.allclose(m.body_iquat[body], [1, 0, 0, 0])):
         raise UserError(f"{where}: the body frame origin must be the centre of gravity with principal axes "
                          f"(inertial pos 0 0 0, no rotation); got ipos {m.body_ipos[body]}, iquat {m.body_iquat[body]}")
@@ -224,45 +222,10 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     if "inertia" in rigid:
         m.body_inertia[body] = rigid["inertia"]
 
-    sites = {}
-    for i in range(m.nsite):
-        match = _THRUSTER_SITE.match(m.site(i).name)
-        if match:
-            sites[int(match.group(1))] = i
-    if not sites or sorted(sites) != list(range(1, len(sites) + 1)):
-        raise UserError(f"{where}: thruster sites must be named thruster1..thrusterN, found {sorted(sites)}")
-    ids = [sites[k] for k in sorted(sites)]
-    if any(m.site_bodyid[i] != body for i in ids):
-        raise UserError(f"{where}: every thruster site must belong to the vehicle body")
-    positions = np.array([m.site_pos[i] for i in ids])
-    directions = []
-    for i in ids:
-        mat = np.zeros(9)
-        mujoco.mju_quat2Mat(mat, m.site_quat[i])
-        directions.append(mat.reshape(3, 3)[:, 2])
-
-    thr = _numerics(m, _PREFIX + "thruster:")
-    model_name = _text(m, _PREFIX + "thruster:model")
-    if model_name != "T200":
-        raise UserError(f"{where}: thruster model {model_name!r} is not supported; available: ['T200']")
-    tc = float(thr.get("time_constant", [np.nan])[0])
-    volt = float(thr.get("voltage", [np.nan])[0])
-    if not (np.isfinite(tc) and tc >= 0):
-        raise UserError(f"{where}: marinejax:thruster:time_constant must be finite and >= 0 s, got {tc}")
-    if not (SUPPLY_VOLTAGE_RANGE[0] <= volt <= SUPPLY_VOLTAGE_RANGE[1]):
-        raise UserError(f"{where}: marinejax:thruster:voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
-    thrusters = ThrusterParams(
-        # float32 cast on the host: converting a float64 value to JAX's float32 compiles a program
-        allocation=jnp.asarray(np.float32(allocation_matrix(positions, np.array(directions)))),
-        curve=t200_curve(),
-        gain=jnp.asarray(np.full(len(ids), thruster_file.get("thruster_gain", 1.0), np.float32)),
-        time_constant=jnp.asarray(np.float32(thruster_file.get("thruster_time_constant", tc))),
-        voltage=jnp.asarray(np.float32(volt)),
-    )
     sys = VehicleSystem(
         model=mjx.put_model(m),
         hydro=hydro,
-        thrusters=thrusters,
+        actuators=actuators,
         body_id=body,
         qpos_adr=int(m.jnt_qposadr[m.body_jntadr[body]]),
         dof_adr=int(m.jnt_dofadr[m.body_jntadr[body]]),
@@ -274,6 +237,6 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         source=source or _text(m, f"{_PREFIX}{param_set}:source") or "",
         mj_model=m,
         sys=sys,
-        thruster_names=tuple(f"thruster{k}" for k in sorted(sites)),
+        actuator_names=tuple(n for g in actuators for n in g.names),
         path=Path(path),
     )

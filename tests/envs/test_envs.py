@@ -57,7 +57,7 @@ def at(position, yaw, n_thrusters=8, velocity=(0, 0, 0), angular_velocity=(0, 0,
         quaternion=mj.frames.quat_from_euler(roll, 0.0, yaw),
         velocity=jnp.asarray(velocity, jnp.float32),
         angular_velocity=jnp.asarray(angular_velocity, jnp.float32),
-        thrust=jnp.zeros(n_thrusters),
+        actuators=jnp.zeros(n_thrusters),
     )
 
 
@@ -149,7 +149,7 @@ def test_domain_randomization_changes_parameters_and_dynamics():
     s = reset(keys)
     dyn = s.info["params"]
     assert np.std(np.asarray(dyn.mass)) > 0.1 and np.std(np.asarray(dyn.hydro.added_mass[:, 2])) > 0.5
-    assert np.std(np.asarray(dyn.voltage)) > 0.3
+    assert np.std(np.asarray(dyn.actuators[0].voltage)) > 0.3
     s_nom = jax.jit(jax.vmap(nominal.reset))(keys)
     np.testing.assert_allclose(np.asarray(s_nom.info["params"].mass), 13.5, rtol=1e-6)
     # passive sinking: the heavier (net weight W - B) a vehicle, the faster it sinks

@@ -59,7 +59,7 @@ TARGET_OVERHEAD = 0.20
 
 # --------------------------------------------------------------------------------------------
 # NumPy baseline: one vehicle, float64, the equations of marinejax.hydro.forces and
-# marinejax.thrusters, integrated by the same scheme as the timed marinejax rollout.
+# marinejax.actuators.t200, integrated by the same scheme as the timed marinejax rollout.
 # --------------------------------------------------------------------------------------------
 
 
@@ -73,10 +73,12 @@ class NumpyVehicle:
     """
 
     def __init__(self, vehicle, dt: float, integrator: str = "midpoint"):
-        from marinejax.thrusters import load_bollard_table
+        from marinejax.actuators.t200 import load_bollard_table, only_t200
 
         sys_ = vehicle.sys
-        model, hydro, thr = sys_.model, sys_.hydro, sys_.thrusters
+        model, hydro = sys_.model, sys_.hydro
+        group = only_t200(sys_.actuators, "the NumPy baseline")
+        thr = group.params
         body = sys_.body_id
         self.dt = float(dt)
         self.integrator = integrator
@@ -90,7 +92,7 @@ class NumpyVehicle:
         self.d_quad = np.asarray(hydro.quadratic_damping, dtype=np.float64)
         self.buoyancy = float(hydro.fluid_density) * self.g * float(hydro.volume)  # N
         self.r_cb = np.asarray(hydro.center_of_buoyancy, dtype=np.float64)
-        self.allocation = np.asarray(thr.allocation, dtype=np.float64)
+        self.allocation = np.asarray(group.design.allocation, dtype=np.float64)
         self.gain = np.asarray(thr.gain, dtype=np.float64)
         tc = float(thr.time_constant)
         self.alpha = 1.0 - math.exp(-self.dt / max(tc, 1e-9))
@@ -286,7 +288,7 @@ def time_batch(vehicle, batch: int, steps: int, control_dt: float, substeps: int
     from marinejax.physics import rollout_batch, initial_state
 
     rng = np.random.default_rng(seed)
-    commands = jnp.asarray(rng.uniform(-0.3, 0.3, (batch, steps, vehicle.num_thrusters)), jnp.float32)
+    commands = jnp.asarray(rng.uniform(-0.3, 0.3, (batch, steps, vehicle.num_actuators)), jnp.float32)
     state = jax.tree.map(lambda x: jnp.broadcast_to(x, (batch,) + x.shape), initial_state(vehicle))
     currents = jnp.zeros((batch, steps, 3), jnp.float32)
     dt = jnp.float32(control_dt)
@@ -390,7 +392,7 @@ def main(argv: list[str] | None = None) -> int:
                      if info["load_average"] else ""))
     console.print(f"python {info['python']}, numpy {info['numpy']}, jax {info['jax']} (jaxlib {info['jaxlib']}), "
                   f"mujoco {info['mujoco']}; backend {info['backend']}, devices {info['devices']}")
-    console.print(f"vehicle {vehicle.name} ({vehicle.num_thrusters} thrusters, parameter set {vehicle.param_set}); "
+    console.print(f"vehicle {vehicle.name} ({vehicle.num_actuators} thrusters, parameter set {vehicle.param_set}); "
                   f"control dt {args.control_dt:g} s x {args.substeps} substeps -> physics dt {physics_dt:g} s, "
                   f"{args.integrator} integrator; "
                   f"random throttles in [-0.3, 0.3], seed 0")
@@ -401,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
     npv = NumpyVehicle(vehicle, physics_dt, args.integrator)
     rng = np.random.default_rng(0)
     sanity_steps = max(1, round(SANITY_SECONDS / args.control_dt))
-    sanity_cmd = rng.uniform(-0.3, 0.3, (sanity_steps, vehicle.num_thrusters))
+    sanity_cmd = rng.uniform(-0.3, 0.3, (sanity_steps, vehicle.num_actuators))
     traj = marinejax.rollout(vehicle, jnp.asarray(sanity_cmd, jnp.float32), control_dt=args.control_dt,
                              substeps=args.substeps, integrator=args.integrator)
     ref = np.asarray(traj.position, dtype=np.float64)
@@ -414,7 +416,7 @@ def main(argv: list[str] | None = None) -> int:
     if not sanity_ok:
         console.print(f"[red]warning: the NumPy baseline disagrees with marinejax by more than {SANITY_TOLERANCE_M} m[/red]")
 
-    np_throttles = rng.uniform(-0.3, 0.3, (16, args.steps, vehicle.num_thrusters))
+    np_throttles = rng.uniform(-0.3, 0.3, (16, args.steps, vehicle.num_actuators))
     npres = time_numpy(npv, np_throttles, args.substeps, args.numpy_seconds)
     numpy_rate = npres["vehicle_steps_per_s"]
     numpy_rtf = numpy_rate * physics_dt

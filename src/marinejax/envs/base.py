@@ -287,7 +287,7 @@ class MarineEnv(Env):
         the estimate from the sensors (`plant/estimator.py`)."""
         if not self._sensor_mode:
             return vs
-        return estimated_state(info["estimator"], info["sensors"].last, vs.thrust)
+        return estimated_state(info["estimator"], info["sensors"].last, vs.actuators)
 
     def _observation(self, vs: VehicleState, info: dict, action: jnp.ndarray, ps: PlantState, integrate: bool = False):
         """The observation at exact state `vs` (updates info["integral"] first when `integrate`)."""
@@ -384,7 +384,7 @@ class MarineEnv(Env):
             quaternion=quat_from_euler(roll, pitch, yaw + dyaw),
             velocity=jax.random.uniform(k[3], (3,), minval=-r.velocity, maxval=r.velocity),
             angular_velocity=jax.random.uniform(k[4], (3,), minval=-r.angular_velocity, maxval=r.angular_velocity),
-            thrust=jnp.zeros(self.vehicle.num_thrusters),
+            actuators=jnp.zeros(self.vehicle.num_actuators),
         )
 
     # --- task hooks ---------------------------------------------------------------------

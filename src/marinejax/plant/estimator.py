@@ -66,7 +66,7 @@ def estimator_update(suite: SensorSuite, est: EstimatorState, m: Measurement) ->
     return EstimatorState(position=position, velocity=velocity, history=history)
 
 
-def estimated_state(est: EstimatorState, m: Measurement, thrust: jnp.ndarray) -> VehicleState:
-    """The estimate as a `VehicleState` (thrust: what the controller commanded, passed through)."""
+def estimated_state(est: EstimatorState, m: Measurement, actuators: jnp.ndarray) -> VehicleState:
+    """The estimate as a `VehicleState` (actuators: the actuator states, passed through)."""
     return VehicleState(position=est.position, quaternion=m.quaternion, velocity=est.velocity,
-                        angular_velocity=m.gyro, thrust=thrust)
+                        angular_velocity=m.gyro, actuators=actuators)

@@ -22,9 +22,7 @@ class PlantParams:
     mass: jnp.ndarray  # () kg
     inertia: jnp.ndarray  # (3,) kg m^2, principal, about the CG
     hydro: HydroParams  # added mass, damping, displaced volume, centre of buoyancy, fluid density
-    thruster_gain: jnp.ndarray  # (N,) thrust multiplier per thruster
-    time_constant: jnp.ndarray  # () s, thruster lag
-    voltage: jnp.ndarray  # () V, supply
+    actuators: tuple  # per actuator group, its kind's episode parameters (a T200Params: gains, lag, voltage)
     disturbance: jnp.ndarray  # (6,) constant external [world-frame force N, body-frame torque N m]
 
     def net_buoyancy(self, gravity: float) -> jnp.ndarray:
@@ -38,9 +36,7 @@ def nominal_params(sys: VehicleSystem) -> PlantParams:
         mass=sys.model.body_mass[sys.body_id],
         inertia=sys.model.body_inertia[sys.body_id],
         hydro=sys.hydro,
-        thruster_gain=sys.thrusters.gain,
-        time_constant=sys.thrusters.time_constant,
-        voltage=sys.thrusters.voltage,
+        actuators=tuple(g.params for g in sys.actuators),
         disturbance=jnp.zeros(6),
     )
 
@@ -52,5 +48,5 @@ def apply_params(sys: VehicleSystem, params: PlantParams) -> VehicleSystem:
         body_mass=sys.model.body_mass.at[b].set(params.mass),
         body_inertia=sys.model.body_inertia.at[b].set(params.inertia),
     )
-    thrusters = sys.thrusters.replace(gain=params.thruster_gain, time_constant=params.time_constant, voltage=params.voltage)
-    return sys.replace(model=model, hydro=params.hydro, thrusters=thrusters)
+    groups = tuple(g.replace(params=p) for g, p in zip(sys.actuators, params.actuators))
+    return sys.replace(model=model, hydro=params.hydro, actuators=groups)

@@ -83,7 +83,7 @@ class Plant:
         self.vehicle = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle, param_set=config.param_set)
         self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
         self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
-        self.action_size = self.vehicle.num_thrusters if config.action_mode == "thrusters" else 6
+        self.action_size = self.vehicle.num_actuators if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(np.asarray(config.wrench_scale, np.float32))
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
         # The MJX step is traced once per plant and reused wherever it is called (training rollout,
@@ -101,7 +101,8 @@ class Plant:
         cfg = self.config
         params = self.nominal_params()
         if cfg.randomization.enabled:
-            params = sample_dynamics(k_dyn, params, self.gravity, cfg.randomization)
+            kinds = tuple(g.kind for g in self.sys.actuators)
+            params = sample_dynamics(k_dyn, params, kinds, self.gravity, cfg.randomization)
         return params.replace(disturbance=sample_disturbance(k_dist, cfg.disturbance))
 
     def init(self, rng: jax.Array, params: PlantParams, start: VehicleState) -> PlantState:
@@ -127,7 +128,7 @@ class Plant:
         if cfg.disturbance.enabled:
             external = body_wrench(params.disturbance, quat_to_mat(self.vehicle_state(state).quaternion))
         ps = control_step(sys, state.physics, command, current.value, cfg.substeps, cfg.action_mode, cfg.integrator, external)
-        finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.thrust))
+        finite = jnp.all(jnp.isfinite(ps.data.qpos)) & jnp.all(jnp.isfinite(ps.data.qvel)) & jnp.all(jnp.isfinite(ps.actuators))
         ps = jax.tree.map(lambda new, old: jnp.where(finite, new, old), ps, state.physics)
         return PlantState(physics=ps, current=current), finite
 
@@ -152,7 +153,8 @@ class Plant:
         """What a real vehicle cannot measure, as one vector for a critic (body frame FLU):
         current (3, m/s), disturbance force (3, N) and torque (3, N m), mass (kg), net buoyancy (N),
         inertia (3), added mass (6), linear and quadratic damping (6 + 6), centre of buoyancy (3, m),
-        thruster gains (N), thruster time constant (s), supply voltage (V)."""
+        then each actuator group's episode parameters (`ActuatorKind.privileged`; T200s: gains (N),
+        time constant (s), supply voltage (V))."""
         rot = quat_to_mat(self.vehicle_state(state).quaternion)
         h = params.hydro
         return jnp.concatenate([
@@ -160,6 +162,6 @@ class Plant:
             body_wrench(params.disturbance, rot),
             params.mass[None], params.net_buoyancy(self.gravity)[None], params.inertia,
             h.added_mass, h.linear_damping, h.quadratic_damping, h.center_of_buoyancy,
-            params.thruster_gain, params.time_constant[None], params.voltage[None],
+            *(g.kind.privileged(p) for g, p in zip(self.sys.actuators, params.actuators)),
         ])
 

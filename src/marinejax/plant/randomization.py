@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from marinejax.config import check_range
 from marinejax.errors import UserError
 from marinejax.plant.params import PlantParams
-from marinejax.thrusters import SUPPLY_VOLTAGE_RANGE
+from marinejax.actuators.t200 import SUPPLY_VOLTAGE_RANGE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,6 +28,7 @@ class RandomizationConfig:
     cob_offset: float = 0.005  # m, each axis of the centre of buoyancy moves by up to ± this
     added_mass_scale: tuple[float, float] = (0.8, 1.2)
     damping_scale: tuple[float, float] = (0.8, 1.2)  # linear and quadratic, per axis
+    # actuators (read by the kinds' `randomize`): T200 thrusters
     thruster_gain: tuple[float, float] = (0.9, 1.1)  # per thruster
     thruster_time_constant: tuple[float, float] = (0.03, 0.1)  # s
     voltage: tuple[float, float] = (14.0, 16.8)  # V, supply (a 4S battery from flat to full)
@@ -44,10 +45,12 @@ class RandomizationConfig:
             raise UserError(f"config 'randomization.cob_offset' must be in [0, 0.1) m, got {self.cob_offset}")
 
 
-def sample_dynamics(rng: jax.Array, nom: PlantParams, gravity: float, config: RandomizationConfig) -> PlantParams:
+def sample_dynamics(rng: jax.Array, nom: PlantParams, kinds: tuple, gravity: float,
+                    config: RandomizationConfig) -> PlantParams:
     """`nom` with its physical parameters perturbed within the configured ranges (gravity in m/s^2;
-    the disturbance is left as it is)."""
-    keys = iter(jax.random.split(rng, 10))
+    the disturbance is left as it is). `kinds`: the `ActuatorKind` of each of `nom.actuators`,
+    which draws that group's parameters (after the rigid-body and fluid ones, in group order)."""
+    keys = _KeyStream(rng)
 
     def u(rng_range, shape=()):
         lo, hi = rng_range
@@ -66,11 +69,21 @@ def sample_dynamics(rng: jax.Array, nom: PlantParams, gravity: float, config: Ra
         volume=volume,
         center_of_buoyancy=h.center_of_buoyancy + u((-config.cob_offset, config.cob_offset), (3,)),
     )
-    return nom.replace(
-        mass=mass,
-        inertia=nom.inertia * u(config.inertia_scale, (3,)),
-        hydro=hydro,
-        thruster_gain=nom.thruster_gain * u(config.thruster_gain, nom.thruster_gain.shape),
-        time_constant=u(config.thruster_time_constant),
-        voltage=u(config.voltage),
-    )
+    inertia = nom.inertia * u(config.inertia_scale, (3,))
+    actuators = tuple(kind.randomize(p, u, config) for kind, p in zip(kinds, nom.actuators))
+    return nom.replace(mass=mass, inertia=inertia, hydro=hydro, actuators=actuators)
+
+
+class _KeyStream:
+    """Keys for the draws in a fixed order: the first ten from split(rng, 10), then more folded in
+    by index (so a vehicle with more actuator groups leaves the earlier draws unchanged)."""
+
+    def __init__(self, rng: jax.Array):
+        self._rng, self._first, self._i = rng, jax.random.split(rng, 10), 0
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> jax.Array:
+        i, self._i = self._i, self._i + 1
+        return self._first[i] if i < 10 else jax.random.fold_in(self._rng, i)

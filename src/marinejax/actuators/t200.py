@@ -1,7 +1,10 @@
-"""Thrusters: the Blue Robotics T200 thrust curve, a first-order lag and the allocation matrix.
+"""The Blue Robotics T200 thruster (actuator kind "t200"): the bollard thrust table, a first-order
+lag and the allocation of the thrusts to a body wrench.
 
 Command u ∈ [−1, 1] is the throttle (PWM − 1500 µs)/400 µs. Positive u pushes the vehicle along the
-thruster site's +z axis.
+thruster site's +z axis. State: each thruster's thrust (N), lagging its steady value. Settings in
+the vehicle file (`marinejax:<prefix>:<field>`): `time_constant` (s, >= 0) and `voltage` (supply, V,
+10-20). Episode parameters (`T200Params`): gain per thruster, time constant, voltage.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from marinejax.actuators.base import ActuatorKind, allocation_matrix, lag_step, site_frames
 from marinejax.errors import UserError
 
 KGF = 9.80665  # N per kgf
@@ -103,15 +107,81 @@ def inverse_t200(curve: T200Curve, voltage: float, samples: int = 801):
     return lambda thrust: jnp.interp(thrust, f_grid, u_grid, left=-1.0, right=1.0)
 
 
-def lag_step(thrust: jnp.ndarray, target: jnp.ndarray, dt: float, time_constant: jnp.ndarray) -> jnp.ndarray:
-    """Exact first-order lag over dt (s): thrust → target with time constant τ (s); τ = 0 is instantaneous."""
-    alpha = 1.0 - jnp.exp(-dt / jnp.maximum(time_constant, 1e-9))
-    return thrust + alpha * (target - thrust)
+@struct.dataclass
+class T200Design:
+    """What a vehicle file fixes for a group of T200s."""
+
+    allocation: jnp.ndarray  # (6, N) body frame FLU: column i = [e_i; r_i × e_i] (m for the moment arm)
+    curve: T200Curve  # steady thrust table
 
 
-def allocation_matrix(positions: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """6×N matrix B with column i = [e_i; r_i × e_i]; positions r_i (N, 3) m and unit directions e_i (N, 3), body frame."""
-    positions = np.asarray(positions, dtype=float)
-    directions = np.asarray(directions, dtype=float)
-    directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    return np.concatenate([directions.T, np.cross(positions, directions).T], axis=0)
+@struct.dataclass
+class T200Params:
+    """Per-episode parameters of a group of T200s."""
+
+    gain: jnp.ndarray  # (N,) multiplicative thrust scale, 1 = nominal
+    time_constant: jnp.ndarray  # () s, first-order lag of the thrust; 0 = instantaneous
+    voltage: jnp.ndarray  # () supply voltage, V
+
+
+class T200(ActuatorKind):
+    """Blue Robotics T200 thrusters (see the module docstring)."""
+
+    name = "t200"
+    SETTINGS = ("time_constant", "voltage")
+
+    def load(self, m, sites, settings, where):
+        self.check_settings(settings, self.SETTINGS, where)
+        tc = float(np.asarray(settings.get("time_constant", [np.nan])).reshape(-1)[0])
+        volt = float(np.asarray(settings.get("voltage", [np.nan])).reshape(-1)[0])
+        if not (np.isfinite(tc) and tc >= 0):
+            raise UserError(f"{where}: time_constant must be finite and >= 0 s, got {tc}")
+        if not (SUPPLY_VOLTAGE_RANGE[0] <= volt <= SUPPLY_VOLTAGE_RANGE[1]):
+            raise UserError(f"{where}: voltage must lie in {SUPPLY_VOLTAGE_RANGE} V, got {volt}")
+        positions, rotations = site_frames(m, sites)
+        # float32 casts on the host: converting a float64 value to JAX's float32 compiles a program
+        design = T200Design(allocation=jnp.asarray(np.float32(allocation_matrix(positions, rotations[:, :, 2]))),
+                            curve=t200_curve())
+        params = T200Params(gain=jnp.asarray(np.ones(len(sites), np.float32)),
+                            time_constant=jnp.asarray(np.float32(tc)), voltage=jnp.asarray(np.float32(volt)))
+        return design, params
+
+    def target(self, design, params, command):
+        return params.gain * t200_thrust(design.curve, command, params.voltage)
+
+    def advance(self, design, params, state, target, dt):
+        return lag_step(state, target, dt, params.time_constant)
+
+    def wrench(self, design, params, state, nu_r):
+        return design.allocation @ state
+
+    def describe(self, names):
+        return f"T200 throttle per thruster in [-1, 1] ((PWM - 1500 us)/400 us; positive pushes along the site's +z), order {list(names)}"
+
+    def randomize(self, params, draw, config):
+        return params.replace(
+            gain=params.gain * draw(config.thruster_gain, params.gain.shape),
+            time_constant=draw(config.thruster_time_constant, ()),
+            voltage=draw(config.voltage, ()),
+        )
+
+    file_fields = ("thruster_gain", "thruster_time_constant")
+
+    def from_file(self, params, values):
+        if "thruster_gain" in values:
+            params = params.replace(gain=jnp.asarray(np.full(params.gain.shape, values["thruster_gain"], np.float32)))
+        if "thruster_time_constant" in values:
+            params = params.replace(time_constant=jnp.asarray(np.float32(values["thruster_time_constant"])))
+        return params
+
+    def privileged(self, params):
+        return jnp.concatenate([params.gain, params.time_constant[None], params.voltage[None]])
+
+
+def only_t200(groups, what: str):
+    """The single actuator group of a vehicle driven only by T200s; `what` (e.g. "the PID
+    controller") needs one and is named in the UserError otherwise."""
+    if len(groups) != 1 or not isinstance(groups[0].kind, T200):
+        kinds = [g.kind.name for g in groups]
+        raise UserError(f"{what} needs a vehicle driven by one group of T200 thrusters; this one has actuator kinds {kinds}")
+    return groups[0]

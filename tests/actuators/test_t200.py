@@ -8,7 +8,8 @@ import pytest
 
 import marinejax as mj
 from marinejax.frames import FRD_TO_FLU
-from marinejax.thrusters import allocation_matrix, lag_step, load_bollard_table, t200_curve, t200_thrust
+from marinejax.actuators.base import allocation_matrix, lag_step
+from marinejax.actuators.t200 import load_bollard_table, t200_curve, t200_thrust
 
 # BlueROV2 Heavy geometry, FRD, von Benzon et al. 2022 (J. Mar. Sci. Eng. 10(12):1898).
 HEAVY_POS_FRD = [(0.156, 0.111, 0.085), (0.156, -0.111, 0.085), (-0.156, 0.111, 0.085), (-0.156, -0.111, 0.085),
@@ -60,7 +61,7 @@ def test_lag_is_exact_first_order():
 
 def test_heavy_allocation_matches_published_geometry():
     v = mj.load_vehicle("bluerov2_heavy")
-    ours_flu = np.asarray(v.sys.thrusters.allocation, dtype=np.float64)
+    ours_flu = np.asarray(v.sys.actuators[0].design.allocation, dtype=np.float64)
     # The same matrix expressed in FRD: forces and moments both flip y and z.
     to_frd = np.kron(np.eye(2), FRD_TO_FLU)
     ours_frd = to_frd @ ours_flu
@@ -79,7 +80,7 @@ def test_heavy_allocation_matches_published_geometry():
 
 def test_bluerov2_has_six_thrusters_and_no_pitch_authority():
     v = mj.load_vehicle("bluerov2")
-    b = np.asarray(v.sys.thrusters.allocation)
+    b = np.asarray(v.sys.actuators[0].design.allocation)
     assert b.shape == (6, 6)
     assert np.linalg.matrix_rank(b, tol=1e-6) == 5
     np.testing.assert_allclose(b[4], 0.0, atol=1e-6)  # pitch row: no thruster makes a pitch moment
