@@ -221,6 +221,10 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         m.body_mass[body] = rigid["mass"][0]
     if "inertia" in rigid:
         m.body_inertia[body] = rigid["inertia"]
+    total = np.diag(np.concatenate([np.full(3, m.body_mass[body]), m.body_inertia[body]])) + np.asarray(hydro.added_mass_matrix(), float)
+    if np.linalg.eigvalsh(total).min() <= 0:
+        raise UserError(f"{where}, parameter set {param_set!r}: rigid-body plus added mass must be positive definite; "
+                        f"its eigenvalues are {np.round(np.linalg.eigvalsh(total), 4).tolist()}")
 
     sys = VehicleSystem(
         model=mjx.put_model(m),

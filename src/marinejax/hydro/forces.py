@@ -4,7 +4,8 @@
 
 ν = [v, ω]: body-frame linear (m/s) and angular (rad/s) velocity; wrenches are [force (N),
 moment about the centre of gravity (N m)] in the body frame. The body origin is the centre of
-gravity, so M_RB = diag(m, m, m, Ix, Iy, Iz).
+gravity, so M_RB = diag(m, m, m, Ix, Iy, Iz); M_A is a symmetric 6 × 6 matrix (diagonal for the
+ROVs: then the Coriolis terms are cross products and the solve a division).
 
 Added mass is solved exactly, not lagged: `hydro_terms` returns the acceleration ν̇ that solves
 (M_RB + M_A) ν̇ = everything else, and the wrench which, applied to the rigid body alone,
@@ -43,8 +44,8 @@ def rigid_body_mass_matrix(mass: jnp.ndarray, inertia: jnp.ndarray) -> jnp.ndarr
 
 
 def added_mass_matrix(params: HydroParams) -> jnp.ndarray:
-    """M_A (6, 6), diagonal, positive."""
-    return jnp.diag(params.added_mass)
+    """M_A (6, 6), symmetric."""
+    return params.added_mass_matrix()
 
 
 def coriolis_matrix(mass_matrix: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
@@ -61,6 +62,15 @@ def coriolis_force_diagonal(mass_diag: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndar
     b = M22 ω, C(ν)ν = [ω × a, v × a + ω × b]. Equal to coriolis_matrix(diag(mass_diag), ν) @ ν."""
     v, w = nu[:3], nu[3:]
     a, b = mass_diag[:3] * v, mass_diag[3:] * w
+    return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
+
+
+def coriolis_force(mass_matrix: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
+    """C(ν)ν (6,) for a symmetric mass matrix (6, 6), without forming C: with [a; b] = M ν,
+    C(ν)ν = [ω × a, v × a + ω × b]. Equal to coriolis_matrix(mass_matrix, ν) @ ν."""
+    v, w = nu[:3], nu[3:]
+    ab = mass_matrix @ nu
+    a, b = ab[:3], ab[3:]
     return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
 
 
@@ -119,11 +129,23 @@ def hydro_terms(
     """
     nu_c, nu_c_dot = current_in_body(rot, current_world, nu[3:])
     nu_r = nu - nu_c
-    # M_RB and M_A are diagonal (CG at the origin, principal axes; diagonal added mass), so the
-    # Coriolis terms are cross products and the solve is a division.
-    m_a = params.added_mass
     m_rb = rigid_body_mass_diagonal(mass, inertia)
     weight = jnp.concatenate([-mass * gravity * rot[2, :], jnp.zeros(3)])
+    if params.coupled:  # full M_A: its Coriolis terms from m2c, and a 6 × 6 solve
+        m_a_full = params.added_mass_matrix()
+        fluid = (
+            -coriolis_force(m_a_full, nu_r)
+            - _damping_diagonal(params, nu_r) * nu_r
+            + buoyancy_wrench(params, rot, gravity)
+            + m_a_full @ nu_c_dot
+        )
+        tau_other = tau + fluid
+        rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
+        acceleration = jnp.linalg.solve(jnp.diag(m_rb) + m_a_full, rhs)
+        return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a_full @ acceleration)
+    # M_RB and M_A diagonal (CG at the origin, principal axes; diagonal added mass): the Coriolis
+    # terms are cross products and the solve is a division.
+    m_a = params.added_mass
     fluid = (
         -coriolis_force_diagonal(m_a, nu_r)
         - _damping_diagonal(params, nu_r) * nu_r
@@ -138,7 +160,8 @@ def hydro_terms(
 
 def kinetic_energy(params: HydroParams, mass, inertia, nu_r: jnp.ndarray) -> jnp.ndarray:
     """½ νᵀ M_RB ν + ½ ν_rᵀ M_A ν_r with ν = ν_r (no current), in J."""
-    return 0.5 * jnp.sum((rigid_body_mass_diagonal(mass, inertia) + params.added_mass) * nu_r**2)
+    rigid = 0.5 * jnp.sum(rigid_body_mass_diagonal(mass, inertia) * nu_r**2)
+    return rigid + 0.5 * nu_r @ (params.added_mass_matrix() @ nu_r)
 
 
 def potential_energy(params: HydroParams, mass, position: jnp.ndarray, rot: jnp.ndarray, gravity) -> jnp.ndarray:

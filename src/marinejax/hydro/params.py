@@ -24,19 +24,30 @@ _POSITIVE = ("volume", "fluid_density")
 
 @struct.dataclass
 class HydroParams:
-    """Fluid coefficients of a vehicle, body frame FLU, about the centre of gravity.
+    """Fluid coefficients of a vehicle, body frame FLU, about the centre of gravity, ordered (surge,
+    sway, heave, roll, pitch, yaw). Values are positive magnitudes (SNAME: M_A = -[Xu̇ ...], D_L =
+    -diag(Xu, ...)).
 
-    All matrices are diagonal (as in every published BlueROV2 set) and stored as their diagonals,
-    ordered (surge, sway, heave, roll, pitch, yaw). Values are positive magnitudes (SNAME: M_A =
-    -diag(Xu̇, ...), D_L = -diag(Xu, ...)).
+    Added mass is a symmetric 6 × 6 matrix: its diagonal in `added_mass` and the rest in
+    `added_mass_coupling` (zero diagonal), e.g. a torpedo's heave–pitch and sway–yaw terms or a
+    diagonal matrix moved from the centre of buoyancy to the CG. A file gives either its 6 diagonal
+    values (every published BlueROV2 set) or all 36, row by row. `coupled` (static, set at load)
+    says whether any coupling is non-zero; without, the equations keep the cheaper diagonal form.
+    Damping matrices are diagonal.
     """
 
-    added_mass: jnp.ndarray  # (6,) kg (linear), kg m^2 (angular)
+    added_mass: jnp.ndarray  # (6,) diagonal of M_A: kg (linear), kg m^2 (angular)
+    added_mass_coupling: jnp.ndarray  # (6, 6) off-diagonal part of M_A (kg, kg m, kg m^2), symmetric, zero diagonal
     linear_damping: jnp.ndarray  # (6,) N s/m, N m s/rad
     quadratic_damping: jnp.ndarray  # (6,) N s^2/m^2, N m s^2/rad^2
     volume: jnp.ndarray  # () displaced volume, m^3
     fluid_density: jnp.ndarray  # () kg/m^3
     center_of_buoyancy: jnp.ndarray  # (3,) m, body frame FLU, relative to the centre of gravity
+    coupled: bool = struct.field(pytree_node=False, default=False)
+
+    def added_mass_matrix(self) -> jnp.ndarray:
+        """M_A (6, 6) (leading batch axes allowed)."""
+        return self.added_mass[..., :, None] * jnp.eye(6) + self.added_mass_coupling
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, object], source: str = "parameters") -> "HydroParams":
@@ -52,8 +63,11 @@ class HydroParams:
         if missing:
             raise UserError(f"{source}: missing hydrodynamic field(s) {missing}")
         arrays = {}
+        coupling = np.zeros((6, 6))
         for name, size in _SIZES.items():
             arr = np.asarray(values[name], dtype=np.float64).reshape(-1)
+            if name == "added_mass" and arr.size == 36:
+                arr, coupling = _split_added_mass(arr, source)
             if arr.size != size:
                 raise UserError(f"{source}: '{name}' needs {size} value(s), got {arr.size}: {arr.tolist()}")
             if not np.all(np.isfinite(arr)):
@@ -64,10 +78,25 @@ class HydroParams:
                 raise UserError(f"{source}: '{name}' must be > 0, got {arr.tolist()}")
             # cast on the host: a float64 array given to JAX is converted by a compiled program
             arrays[name] = jnp.asarray(np.float32(arr) if size > 1 else np.float32(arr[0]))
-        return cls(**arrays)
+        return cls(**arrays, added_mass_coupling=jnp.asarray(np.float32(coupling)), coupled=bool(np.any(coupling != 0)))
 
     def replace_values(self, **changes: object) -> "HydroParams":
-        """Copy with some fields changed, validated like `from_mapping`."""
+        """Copy with some fields changed, validated like `from_mapping` (`added_mass`: 6 or 36 values)."""
         current = {k: np.asarray(getattr(self, k)) for k in _SIZES}
+        if self.coupled:
+            current["added_mass"] = np.asarray(self.added_mass_matrix()).reshape(-1)
         current.update(changes)
         return HydroParams.from_mapping(current, source="HydroParams.replace_values")
+
+
+def _split_added_mass(values: np.ndarray, source: str) -> tuple[np.ndarray, np.ndarray]:
+    """36 values of M_A (row by row) → (diagonal (6,), coupling (6, 6)); symmetric, and positive
+    on the diagonal, or a UserError."""
+    m = values.reshape(6, 6)
+    if not np.all(np.isfinite(m)):
+        raise UserError(f"{source}: 'added_mass' has non-finite values {values.tolist()}")
+    if not np.allclose(m, m.T, rtol=1e-6, atol=1e-9):
+        i, j = np.unravel_index(np.argmax(np.abs(m - m.T)), m.shape)
+        raise UserError(f"{source}: the 6 x 6 'added_mass' must be symmetric; entry ({i}, {j}) = {m[i, j]} but ({j}, {i}) = {m[j, i]}")
+    m = 0.5 * (m + m.T)
+    return np.diag(m).copy(), m - np.diag(np.diag(m))

@@ -62,8 +62,12 @@ def sample_dynamics(rng: jax.Array, nom: PlantParams, kinds: tuple, gravity: flo
     # the volume keeps the nominal net buoyancy with the new mass, then shifts it by net_buoyancy
     volume = h.volume + ((mass - nom.mass) * g + u(config.net_buoyancy)) / (h.fluid_density * g)
     damping = u(config.damping_scale, (6,))
+    added_scale = u(config.added_mass_scale, (6,))
+    if h.coupled:  # S^½ M_A S^½: the couplings scale with their two axes, M_A stays positive definite
+        root = jnp.sqrt(added_scale)
+        h = h.replace(added_mass_coupling=h.added_mass_coupling * root[..., :, None] * root[..., None, :])
     hydro = h.replace(
-        added_mass=h.added_mass * u(config.added_mass_scale, (6,)),
+        added_mass=h.added_mass * added_scale,
         linear_damping=h.linear_damping * damping,
         quadratic_damping=h.quadratic_damping * damping,
         volume=volume,
