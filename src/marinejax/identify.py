@@ -461,7 +461,7 @@ def save_param_set(path: Path | str, vehicle: str, result: FitResult, source: st
     p = result.params
     data = {
         "vehicle": vehicle, "source": source,
-        "added_mass": np.asarray(p.hydro.added_mass_matrix() if p.hydro.coupled else p.hydro.added_mass).reshape(-1).tolist(), "linear_damping": np.asarray(p.hydro.linear_damping).tolist(),
+        "added_mass": np.asarray(p.hydro.added_mass_matrix() if not p.hydro.simple else p.hydro.added_mass).reshape(-1).tolist(), "linear_damping": np.asarray(p.hydro.linear_damping).tolist(),
         "quadratic_damping": np.asarray(p.hydro.quadratic_damping).tolist(), "volume": float(p.hydro.volume),
         "fluid_density": float(p.hydro.fluid_density), "center_of_buoyancy": np.asarray(p.hydro.center_of_buoyancy).tolist(),
         "mass": float(p.mass), "inertia": np.asarray(p.inertia).tolist(),

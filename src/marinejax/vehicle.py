@@ -20,6 +20,7 @@ from mujoco import mjx
 
 from marinejax.errors import MissingFileError, UserError
 from marinejax.actuators import ActuatorGroup, declared_groups, load_actuators
+from marinejax.hydro.forces import added_mass_at_cg
 from marinejax.hydro.params import HydroParams
 
 _PREFIX = "marinejax:"
@@ -52,6 +53,24 @@ def env_name_prefix(vehicle: str) -> str:
         if text.get("name") == _PREFIX + "env_name" and text.get("data"):
             return text.get("data")
     return "".join(part[:1].upper() + part[1:] for part in vehicle.split("_"))
+
+
+VEHICLE_KINDS = ("rov", "torpedo")  # rov: hovers on thrusters; torpedo: one propeller and fins, cannot hover
+
+
+def vehicle_kind(vehicle: str) -> str:
+    """What kind of vehicle `vehicle` is (which tasks it can do): the MJCF's custom text
+    `marinejax:vehicle_kind`, one of VEHICLE_KINDS, "rov" if absent. Reads the XML only."""
+    import xml.etree.ElementTree as ElementTree
+
+    path = model_dir() / f"{vehicle}.xml"
+    for text in ElementTree.parse(path).getroot().iter("text"):
+        if text.get("name") == _PREFIX + "vehicle_kind":
+            kind = text.get("data", "")
+            if kind not in VEHICLE_KINDS:
+                raise UserError(f"vehicle {vehicle!r} ({path.name}): unknown vehicle kind {kind!r}; valid: {list(VEHICLE_KINDS)}")
+            return kind
+    return "rov"
 
 
 def sensor_settings(vehicle: str) -> dict[str, float]:
@@ -221,7 +240,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         m.body_mass[body] = rigid["mass"][0]
     if "inertia" in rigid:
         m.body_inertia[body] = rigid["inertia"]
-    total = np.diag(np.concatenate([np.full(3, m.body_mass[body]), m.body_inertia[body]])) + np.asarray(hydro.added_mass_matrix(), float)
+    total = np.diag(np.concatenate([np.full(3, m.body_mass[body]), m.body_inertia[body]])) + np.asarray(added_mass_at_cg(hydro), float)
     if np.linalg.eigvalsh(total).min() <= 0:
         raise UserError(f"{where}, parameter set {param_set!r}: rigid-body plus added mass must be positive definite; "
                         f"its eigenvalues are {np.round(np.linalg.eigvalsh(total), 4).tolist()}")

@@ -28,6 +28,15 @@ def test_every_vehicle_file_gets_every_task_and_its_disturbed_variant():
     assert spec.config.disturbance.enabled and spec.config.randomization.enabled and spec.config.current.mode == "ou"
 
 
+def test_tasks_go_to_the_vehicles_of_their_kind():
+    """The torpedo REMUS 100 cannot hover: it gets none of the ROV tasks, and asking for one says why."""
+    assert not [n for n in marinejax.list_envs() if n.startswith("Remus100-")]
+    with pytest.raises(UserError, match="unknown env 'Remus100-StationKeeping'"):
+        marinejax.make("Remus100-StationKeeping")
+    with pytest.raises(UserError, match="for vehicles of kind \\['rov'\\]; 'remus100' is a 'torpedo'"):
+        register_environment("MyRemus-Circle", "CircleTracking", "remus100")
+
+
 def test_a_new_mjcf_file_is_a_new_vehicle_with_all_tasks():
     """Adding a vehicle is one file: a copy of the BlueROV2 under a new name, nothing else."""
     stem = f"testrov_{uuid.uuid4().hex[:8]}"

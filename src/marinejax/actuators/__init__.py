@@ -1,7 +1,9 @@
 """Actuators as components: the kinds a vehicle file can declare, and the loading of its groups.
 
-Kinds: "t200" (Blue Robotics T200 thruster, `t200.py`). A new kind is one module with an
-`ActuatorKind` subclass (contract in `base.py`) and one `register_kind(...)` call.
+Kinds: "t200" (Blue Robotics T200 thruster, `t200.py`), "propeller" (a shaft-driven propeller with
+open-water coefficients, `propeller.py`), "fin" (a control fin or pair of fins, `fin.py`). A new
+kind is one module with an `ActuatorKind` subclass (contract in `base.py`) and one
+`register_kind(...)` call.
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ import mujoco
 import numpy as np
 
 from marinejax.actuators.base import ActuatorGroup, ActuatorKind, allocation_matrix, lag_step
+from marinejax.actuators.fin import Fin
+from marinejax.actuators.propeller import Propeller
 from marinejax.actuators.t200 import T200
 from marinejax.errors import UserError
 
@@ -34,7 +38,8 @@ def list_kinds() -> list[str]:
     return sorted(_KINDS)
 
 
-register_kind(T200())
+for _kind in (T200(), Propeller(), Fin()):
+    register_kind(_kind)
 
 
 def _custom_text(m: mujoco.MjModel, name: str) -> str | None:

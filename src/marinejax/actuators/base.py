@@ -11,7 +11,7 @@ A kind is one module with one `ActuatorKind` subclass registered under its name
 - `params`: what may differ per episode (gains, time constants, supply voltage): `PlantParams`
   holds one per group, randomization draws it, identification fits it.
 Every actuator has one state in physical units (a thruster's thrust in N, a fin's angle in rad, a
-propeller's speed in rad/s), moved towards the target its command sets; the vehicle's actuator
+propeller's speed in rev/min), moved towards the target its command sets; the vehicle's actuator
 state is the concatenation over groups, in action order. Commands are normalised to [−1, 1].
 """
 

@@ -86,7 +86,7 @@ class NumpyVehicle:
         self.inertia = np.asarray(model.body_inertia[body], dtype=np.float64)
         self.g = float(-model.opt.gravity[2])
         self.m_rb = np.diag(np.concatenate([np.full(3, self.mass), self.inertia]))
-        self.m_a = np.asarray(hydro.added_mass_matrix(), dtype=np.float64)
+        self.m_a = np.asarray(hydro.added_mass_matrix(), dtype=np.float64)  # the ROVs': about the CG
         self.m_inv = np.linalg.inv(self.m_rb + self.m_a)  # constant: invert once
         self.d_lin = np.asarray(hydro.linear_damping, dtype=np.float64)
         self.d_quad = np.asarray(hydro.quadratic_damping, dtype=np.float64)

@@ -139,6 +139,7 @@ class MarineEnv(Env):
     """
 
     config_class = EnvConfig
+    vehicle_kinds = ("rov",)  # the kinds of vehicle (`marinejax.vehicle.VEHICLE_KINDS`) this task is for
     error_window_description = "every step"  # what `error_window` selects, for reports
     success_threshold_m = 0.1  # m: an episode succeeds when its mean error over the window is below this
 

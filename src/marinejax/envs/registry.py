@@ -2,7 +2,8 @@
 
 Vehicles are discovered: every MJCF file in `models/mjcf/` is a vehicle, whose envs are named by its
 custom text `marinejax:env_name` (else its file stem in CamelCase). Tasks are registered once, in
-`marinejax/envs/__init__.py`, with `register_task`; every vehicle gets every task. Every task also
+`marinejax/envs/__init__.py`, with `register_task`; every vehicle gets every task made for its kind
+(`marinejax:vehicle_kind`: "rov", the default, or "torpedo"; a task's `vehicle_kinds`). Every task also
 gets a `<Task>Disturbed` variant: the same task whose default config draws, per episode, new
 physics (`randomization`), an Ornstein-Uhlenbeck current of up to 0.3 m/s (`current`) and a
 constant external force and torque (`disturbance`). `register_environment` adds any other
@@ -21,7 +22,7 @@ from typing import Any, Callable
 from marinejax.config import apply_overrides
 from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.errors import UserError
-from marinejax.vehicle import env_name_prefix, list_vehicles, sensor_settings
+from marinejax.vehicle import env_name_prefix, list_vehicles, sensor_settings, vehicle_kind
 
 DISTURBED = {"randomization.enabled": True, "current.mode": "ou", "disturbance.enabled": True}
 
@@ -33,6 +34,7 @@ class TaskSpec:
     name: str
     factory: Callable[[str, EnvConfig], MarineEnv]
     config: EnvConfig
+    vehicle_kinds: tuple[str, ...] = ("rov",)  # the kinds of vehicle that can do it
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,7 +59,7 @@ def register_task(name: str, env_class: type[MarineEnv], config: EnvConfig | Non
     for task, default in ((name, config), (f"{name}Disturbed", apply_overrides(config, DISTURBED))):
         if task in _TASKS:
             raise UserError(f"task {task!r} is already registered")
-        _TASKS[task] = TaskSpec(task, factory, default)
+        _TASKS[task] = TaskSpec(task, factory, default, tuple(env_class.vehicle_kinds))
 
 
 def _build(env_class: type[MarineEnv], kwargs: dict[str, Any], vehicle: str, config: EnvConfig) -> MarineEnv:
@@ -75,6 +77,7 @@ def register_environment(name: str, task: str, vehicle: str, config: EnvConfig |
         raise UserError(f"unknown task {task!r}; registered tasks: {list(_TASKS)}")
     if vehicle not in list_vehicles():
         raise UserError(f"unknown vehicle {vehicle!r}; available vehicles: {list_vehicles()}")
+    _check_kind(task, vehicle)
     default = _TASKS[task].config
     if config is not None and type(config) is not type(default):
         raise UserError(f"task {task!r} takes a {type(default).__name__}, got {type(config).__name__}")
@@ -86,9 +89,17 @@ def _vehicle_prefixes() -> dict[str, str]:
     return {env_name_prefix(v): v for v in list_vehicles()}
 
 
+def _check_kind(task: str, vehicle: str) -> None:
+    kinds = _TASKS[task].vehicle_kinds
+    if vehicle_kind(vehicle) not in kinds:
+        raise UserError(f"task {task!r} is for vehicles of kind {list(kinds)}; {vehicle!r} is a {vehicle_kind(vehicle)!r}")
+
+
 def list_envs() -> list[str]:
-    """All registered env names: every vehicle × every task, then the user-registered ones."""
-    return [f"{prefix}-{task}" for prefix in _vehicle_prefixes() for task in _TASKS] + list(_CUSTOM_ENVS)
+    """All registered env names: every vehicle × every task for its kind, then the user-registered ones."""
+    kinds = {v: vehicle_kind(v) for v in list_vehicles()}
+    return [f"{prefix}-{task}" for prefix, vehicle in _vehicle_prefixes().items() for task, spec in _TASKS.items()
+            if kinds[vehicle] in spec.vehicle_kinds] + list(_CUSTOM_ENVS)
 
 
 def env_spec(name: str) -> EnvSpec:
@@ -97,7 +108,7 @@ def env_spec(name: str) -> EnvSpec:
         return _CUSTOM_ENVS[name]
     prefix, _, task = name.partition("-")
     vehicle = _vehicle_prefixes().get(prefix)
-    if vehicle is None or task not in _TASKS:
+    if vehicle is None or task not in _TASKS or vehicle_kind(vehicle) not in _TASKS[task].vehicle_kinds:
         raise UserError(f"unknown env {name!r}; registered envs: {list_envs()}")
     return EnvSpec(name, task, vehicle, _with_vehicle_sensors(_TASKS[task].config, vehicle))
 

@@ -4,8 +4,12 @@
 
 ν = [v, ω]: body-frame linear (m/s) and angular (rad/s) velocity; wrenches are [force (N),
 moment about the centre of gravity (N m)] in the body frame. The body origin is the centre of
-gravity, so M_RB = diag(m, m, m, Ix, Iy, Iz); M_A is a symmetric 6 × 6 matrix (diagonal for the
-ROVs: then the Coriolis terms are cross products and the solve a division).
+gravity, so M_RB = diag(m, m, m, Ix, Iy, Iz). The fluid coefficients are given about the vehicle's
+reference point o (`HydroParams.reference_point`, the CG for the ROVs): there the velocity is
+ν_o = H ν with H = [[I, S(r)ᵀ], [0, I]] (v_o = v + ω × r), the fluid wrench τ_o is evaluated, and
+H ᵀ τ_o is its wrench about the CG; the added mass about the CG is Hᵀ M_A H. M_A is a symmetric
+6 × 6 matrix; for the ROVs (diagonal, about the CG) the Coriolis terms are cross products and the
+solve a division.
 
 Added mass is solved exactly, not lagged: `hydro_terms` returns the acceleration ν̇ that solves
 (M_RB + M_A) ν̇ = everything else, and the wrench which, applied to the rigid body alone,
@@ -17,6 +21,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from flax import struct
 
+from marinejax.hydro import hull as hull_terms
 from marinejax.hydro.params import HydroParams
 
 
@@ -103,6 +108,43 @@ def current_in_body(rot: jnp.ndarray, current_world: jnp.ndarray, omega: jnp.nda
     return jnp.concatenate([vc, zeros]), jnp.concatenate([-jnp.cross(omega, vc), zeros])
 
 
+# C_A entries (row, column) the REMUS reference drops: its surge row and the Munk moments
+# (Fossen 2021, section 8.4.2; `HydroParams.munk_terms` False)
+_MUNK_ROWS = jnp.array([4, 0, 4, 2, 5, 0, 5, 1])
+_MUNK_COLS = jnp.array([0, 4, 2, 4, 0, 5, 1, 5])
+
+
+def transfer_matrix(r: jnp.ndarray) -> jnp.ndarray:
+    """H(r) (6, 6): the velocity [v + ω × r, ω] of the point r (m, body frame, from the CG) is H ν."""
+    return jnp.eye(6).at[:3, 3:].set(skew(r).T)
+
+
+def added_mass_at_cg(params: HydroParams) -> jnp.ndarray:
+    """M_A about the CG (6, 6): Hᵀ M_A H with H = H(reference_point)."""
+    h = transfer_matrix(params.reference_point)
+    return h.T @ params.added_mass_matrix() @ h
+
+
+def fluid_wrench(params: HydroParams, nu_r: jnp.ndarray, nu_c_dot: jnp.ndarray) -> jnp.ndarray:
+    """The fluid wrench about the CG (6,), body FLU, buoyancy and the added-mass inertia −M_A ν̇
+    excluded: −C_A(ν_r,o) ν_r,o − D(ν_r,o) ν_r,o + M_A ν̇_c and a slender hull's lift, drag and
+    cross-flow drag, all evaluated at the reference point o and moved to the CG."""
+    r = params.reference_point
+    nu_o = jnp.concatenate([nu_r[:3] + jnp.cross(nu_r[3:], r), nu_r[3:]])
+    m_a = params.added_mass_matrix()
+    if params.munk_terms:
+        coriolis = coriolis_force(m_a, nu_o)
+    else:
+        coriolis = coriolis_matrix(m_a, nu_o).at[_MUNK_ROWS, _MUNK_COLS].set(0.0) @ nu_o
+    speed = jnp.sqrt(nu_o[0] ** 2 + nu_o[1] ** 2 + nu_o[2] ** 2)
+    damping = (params.linear_damping * jnp.exp(-params.damping_fade * speed) + params.quadratic_damping * jnp.abs(nu_o)) * nu_o
+    wrench = -coriolis - damping + m_a @ nu_c_dot  # ν̇_c is the same at every point (irrotational current)
+    if params.hull is not None:
+        wrench = wrench + hull_terms.lift_drag(params.hull, params.fluid_density, nu_o)
+        wrench = wrench + hull_terms.crossflow_drag(params.hull, params.fluid_density, nu_o)
+    return jnp.concatenate([wrench[:3], wrench[3:] + jnp.cross(r, wrench[:3])])
+
+
 @struct.dataclass
 class HydroTerms:
     """Result of one evaluation of the equations of motion (body frame FLU)."""
@@ -131,18 +173,13 @@ def hydro_terms(
     nu_r = nu - nu_c
     m_rb = rigid_body_mass_diagonal(mass, inertia)
     weight = jnp.concatenate([-mass * gravity * rot[2, :], jnp.zeros(3)])
-    if params.coupled:  # full M_A: its Coriolis terms from m2c, and a 6 × 6 solve
-        m_a_full = params.added_mass_matrix()
-        fluid = (
-            -coriolis_force(m_a_full, nu_r)
-            - _damping_diagonal(params, nu_r) * nu_r
-            + buoyancy_wrench(params, rot, gravity)
-            + m_a_full @ nu_c_dot
-        )
+    if not params.simple:
+        fluid = fluid_wrench(params, nu_r, nu_c_dot) + buoyancy_wrench(params, rot, gravity)
+        m_a = added_mass_at_cg(params)
         tau_other = tau + fluid
         rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
-        acceleration = jnp.linalg.solve(jnp.diag(m_rb) + m_a_full, rhs)
-        return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a_full @ acceleration)
+        acceleration = jnp.linalg.solve(jnp.diag(m_rb) + m_a, rhs)
+        return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a @ acceleration)
     # M_RB and M_A diagonal (CG at the origin, principal axes; diagonal added mass): the Coriolis
     # terms are cross products and the solve is a division.
     m_a = params.added_mass
@@ -161,7 +198,7 @@ def hydro_terms(
 def kinetic_energy(params: HydroParams, mass, inertia, nu_r: jnp.ndarray) -> jnp.ndarray:
     """½ νᵀ M_RB ν + ½ ν_rᵀ M_A ν_r with ν = ν_r (no current), in J."""
     rigid = 0.5 * jnp.sum(rigid_body_mass_diagonal(mass, inertia) * nu_r**2)
-    return rigid + 0.5 * nu_r @ (params.added_mass_matrix() @ nu_r)
+    return rigid + 0.5 * nu_r @ (added_mass_at_cg(params) @ nu_r)
 
 
 def potential_energy(params: HydroParams, mass, position: jnp.ndarray, rot: jnp.ndarray, gravity) -> jnp.ndarray:

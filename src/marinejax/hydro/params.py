@@ -9,6 +9,7 @@ import numpy as np
 from flax import struct
 
 from marinejax.errors import UserError
+from marinejax.hydro import hull as hull_terms
 
 _SIZES = {
     "added_mass": 6,
@@ -18,22 +19,35 @@ _SIZES = {
     "fluid_density": 1,
     "center_of_buoyancy": 3,
 }
-_NONNEGATIVE = ("added_mass", "linear_damping", "quadratic_damping")
+# optional fields and their defaults (the ROVs use none of them)
+_OPTIONAL = {
+    "reference_point": np.zeros(3),
+    "damping_fade": np.zeros(6),
+    "added_mass_munk_terms": np.ones(1),
+}
+_NONNEGATIVE = ("added_mass", "linear_damping", "quadratic_damping", "damping_fade")
 _POSITIVE = ("volume", "fluid_density")
 
 
 @struct.dataclass
 class HydroParams:
-    """Fluid coefficients of a vehicle, body frame FLU, about the centre of gravity, ordered (surge,
-    sway, heave, roll, pitch, yaw). Values are positive magnitudes (SNAME: M_A = -[Xu̇ ...], D_L =
-    -diag(Xu, ...)).
+    """Fluid coefficients of a vehicle, body frame FLU, ordered (surge, sway, heave, roll, pitch,
+    yaw), about its hydrodynamic reference point: the centre of gravity (the ROVs) or the point
+    `reference_point` (m, from the CG) where a published model is written (the REMUS 100's centre of
+    buoyancy). Values are positive magnitudes (SNAME: M_A = -[Xu̇ ...], D_L = -diag(Xu, ...)).
 
     Added mass is a symmetric 6 × 6 matrix: its diagonal in `added_mass` and the rest in
     `added_mass_coupling` (zero diagonal), e.g. a torpedo's heave–pitch and sway–yaw terms or a
     diagonal matrix moved from the centre of buoyancy to the CG. A file gives either its 6 diagonal
-    values (every published BlueROV2 set) or all 36, row by row. `coupled` (static, set at load)
-    says whether any coupling is non-zero; without, the equations keep the cheaper diagonal form.
-    Damping matrices are diagonal.
+    values (every published BlueROV2 set) or all 36, row by row.
+
+    Damping matrices are diagonal; the linear damping fades with the relative speed U_r (m/s) as
+    exp(−damping_fade · U_r) (the REMUS model lets its surge and sway damping give way to the hull's
+    quadratic drag and lift). `added_mass_munk_terms` 0 drops the Munk moments and the surge row of
+    C_A (the REMUS reference code does, Fossen 2021 section 8.4.2; 1, physical, keeps the whole
+    C_A). `hull`: a slender hull's lift, drag and cross-flow drag (`hydro/hull.py`), or None.
+    `simple` (static, set at load): diagonal M_A about the CG, no fading, whole C_A, no hull; then
+    the equations keep the cheaper diagonal form.
     """
 
     added_mass: jnp.ndarray  # (6,) diagonal of M_A: kg (linear), kg m^2 (angular)
@@ -43,7 +57,11 @@ class HydroParams:
     volume: jnp.ndarray  # () displaced volume, m^3
     fluid_density: jnp.ndarray  # () kg/m^3
     center_of_buoyancy: jnp.ndarray  # (3,) m, body frame FLU, relative to the centre of gravity
-    coupled: bool = struct.field(pytree_node=False, default=False)
+    reference_point: jnp.ndarray  # (3,) m, body frame FLU, from the CG: where the coefficients are given
+    damping_fade: jnp.ndarray  # (6,) s/m, linear damping × exp(−fade · U_r)
+    hull: hull_terms.HullParams | None = None
+    munk_terms: bool = struct.field(pytree_node=False, default=True)
+    simple: bool = struct.field(pytree_node=False, default=True)
 
     def added_mass_matrix(self) -> jnp.ndarray:
         """M_A (6, 6) (leading batch axes allowed)."""
@@ -56,15 +74,19 @@ class HydroParams:
         Raises ValueError naming the field (and `source`) on a missing, unknown, misshaped,
         non-finite or physically impossible value.
         """
-        unknown = sorted(set(values) - set(_SIZES))
+        unknown = sorted(set(values) - set(_SIZES) - set(_OPTIONAL) - set(hull_terms.FIELDS))
         if unknown:
-            raise UserError(f"{source}: unknown hydrodynamic field(s) {unknown}; valid: {sorted(_SIZES)}")
+            raise UserError(f"{source}: unknown hydrodynamic field(s) {unknown}; valid: "
+                            f"{sorted(_SIZES)}, optional {sorted(_OPTIONAL)} and a slender hull's {sorted(hull_terms.FIELDS)}")
+        hull = hull_terms.HullParams.from_mapping(values, source)
+        values = {**_OPTIONAL, **{k: v for k, v in values.items() if k not in hull_terms.FIELDS}}
         missing = sorted(set(_SIZES) - set(values))
         if missing:
             raise UserError(f"{source}: missing hydrodynamic field(s) {missing}")
         arrays = {}
         coupling = np.zeros((6, 6))
-        for name, size in _SIZES.items():
+        sizes = {**_SIZES, "reference_point": 3, "damping_fade": 6, "added_mass_munk_terms": 1}
+        for name, size in sizes.items():
             arr = np.asarray(values[name], dtype=np.float64).reshape(-1)
             if name == "added_mass" and arr.size == 36:
                 arr, coupling = _split_added_mass(arr, source)
@@ -78,13 +100,18 @@ class HydroParams:
                 raise UserError(f"{source}: '{name}' must be > 0, got {arr.tolist()}")
             # cast on the host: a float64 array given to JAX is converted by a compiled program
             arrays[name] = jnp.asarray(np.float32(arr) if size > 1 else np.float32(arr[0]))
-        return cls(**arrays, added_mass_coupling=jnp.asarray(np.float32(coupling)), coupled=bool(np.any(coupling != 0)))
+        munk = float(arrays.pop("added_mass_munk_terms"))
+        if munk not in (0.0, 1.0):
+            raise UserError(f"{source}: 'added_mass_munk_terms' must be 0 or 1, got {munk}")
+        simple = (not np.any(coupling != 0) and not np.any(np.asarray(values["reference_point"], float) != 0)
+                  and not np.any(np.asarray(values["damping_fade"], float) != 0) and munk == 1.0 and hull is None)
+        return cls(**arrays, added_mass_coupling=jnp.asarray(np.float32(coupling)), hull=hull, munk_terms=munk == 1.0, simple=simple)
 
     def replace_values(self, **changes: object) -> "HydroParams":
         """Copy with some fields changed, validated like `from_mapping` (`added_mass`: 6 or 36 values)."""
+        if not self.simple:
+            raise UserError("HydroParams.replace_values supports the simple (ROV) form only")
         current = {k: np.asarray(getattr(self, k)) for k in _SIZES}
-        if self.coupled:
-            current["added_mass"] = np.asarray(self.added_mass_matrix()).reshape(-1)
         current.update(changes)
         return HydroParams.from_mapping(current, source="HydroParams.replace_values")
 

@@ -63,7 +63,7 @@ def sample_dynamics(rng: jax.Array, nom: PlantParams, kinds: tuple, gravity: flo
     volume = h.volume + ((mass - nom.mass) * g + u(config.net_buoyancy)) / (h.fluid_density * g)
     damping = u(config.damping_scale, (6,))
     added_scale = u(config.added_mass_scale, (6,))
-    if h.coupled:  # S^½ M_A S^½: the couplings scale with their two axes, M_A stays positive definite
+    if not h.simple:  # S^½ M_A S^½: the couplings scale with their two axes, M_A stays positive definite
         root = jnp.sqrt(added_scale)
         h = h.replace(added_mass_coupling=h.added_mass_coupling * root[..., :, None] * root[..., None, :])
     hydro = h.replace(

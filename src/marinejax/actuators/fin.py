@@ -1,0 +1,100 @@
+"""A control fin (actuator kind "fin"): a rudder, a stern plane, or one of four independent fins
+(Fossen 2021 section 8.4.2; the REMUS 100 of the Marine Systems Simulator).
+
+State: deflection δ (rad), lagging its command by a first-order lag (`time_constant`, s); command
+u ∈ [−1, 1] sets δ = u · max_angle. The site's +z axis is the lift direction at positive δ, its
+position the centre of pressure. With U² = (v·x̂)² + (v·ẑ)², the water speed at `flow_point`
+(m, body FLU from the CG; default: the site) in the plane of the body's x axis x̂ and the fin's
+lift direction ẑ:
+
+    lift  = ½ ρ U² A C_Lδ δ   along ẑ
+    drag  = ½ ρ U² A C_Lδ δ² · drag_factor   along −x̂
+
+with A the fin area (a pair of fins moved together counts both) and C_Lδ the lift slope (per rad).
+The moment about the CG is r × F. The lift depends on δ alone, not on the local angle of the flow,
+as in the reference: the fin adds no damping. The REMUS reference takes the flow at its centre of
+buoyancy and uses the lift slope as the drag coefficient (`drag_factor` 1); its four-fin torpedo
+takes the flow in each fin's plane and has no fin drag (`drag_factor` 0).
+
+Signs: a rudder whose site's +z points to port (+y) pushes the tail to port at positive δ, so the
+bow turns to starboard (the reference's δ_r > 0); a stern plane whose +z points up lifts the tail,
+so the nose goes down and the vehicle dives (the reference's δ_s > 0).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from marinejax.actuators.base import ActuatorKind, lag_step, site_frames
+from marinejax.errors import UserError
+
+SETTINGS = {"area": 1e-9, "lift_slope": 0.0, "max_angle": 1e-6, "time_constant": 0.0, "drag_factor": 0.0, "fluid_density": 1e-6}
+OPTIONAL = ("flow_point",)
+MAX_ANGLE = float(np.pi / 2)  # rad: beyond this "deflection" means nothing
+
+
+@struct.dataclass
+class FinDesign:
+    position: jnp.ndarray  # (N, 3) m, centre of pressure, body FLU from the CG
+    normal: jnp.ndarray  # (N, 3) unit lift direction at positive deflection
+    flow_point: jnp.ndarray  # (N, 3) m, where the water velocity is taken
+    lift: jnp.ndarray  # () ½ ρ A C_Lδ, N s²/m² per rad
+    drag_factor: jnp.ndarray  # ()
+
+
+@struct.dataclass
+class FinParams:
+    max_angle: jnp.ndarray  # () rad, deflection at command ±1
+    time_constant: jnp.ndarray  # () s
+
+
+class Fin(ActuatorKind):
+    """See the module docstring."""
+
+    name = "fin"
+
+    def load(self, m, sites, settings, where):
+        self.check_settings(settings, tuple(SETTINGS) + OPTIONAL, where)
+        v = {}
+        for key, low in SETTINGS.items():
+            if key not in settings:
+                raise UserError(f"{where}: missing setting '{key}' (settings: {sorted(SETTINGS)}, optional {list(OPTIONAL)})")
+            value = np.asarray(settings[key], float).reshape(-1)
+            if value.size != 1 or not np.isfinite(value[0]) or value[0] < low:
+                raise UserError(f"{where}: setting '{key}' must be one finite number >= {low}, got {value.tolist()}")
+            v[key] = float(value[0])
+        if v["max_angle"] > MAX_ANGLE:
+            raise UserError(f"{where}: setting 'max_angle' is in rad and must be <= pi/2, got {v['max_angle']}")
+        positions, rotations = site_frames(m, sites)
+        flow = np.asarray(settings.get("flow_point", np.full(3, np.nan)), float).reshape(-1)
+        if flow.size != 3:
+            raise UserError(f"{where}: setting 'flow_point' must be 3 numbers (m, body FLU from the CG), got {flow.tolist()}")
+        flow_points = positions if np.isnan(flow).all() else np.broadcast_to(flow, positions.shape)
+        f32 = lambda a: jnp.asarray(np.float32(a))  # noqa: E731  (host casts: no compiled conversion)
+        design = FinDesign(position=f32(positions), normal=f32(rotations[:, :, 2]), flow_point=f32(flow_points),
+                           lift=f32(0.5 * v["fluid_density"] * v["area"] * v["lift_slope"]), drag_factor=f32(v["drag_factor"]))
+        return design, FinParams(max_angle=f32(v["max_angle"]), time_constant=f32(v["time_constant"]))
+
+    def target(self, design, params, command):
+        return jnp.clip(command, -1.0, 1.0) * params.max_angle
+
+    def advance(self, design, params, state, target, dt):
+        return lag_step(state, target, dt, params.time_constant)
+
+    def wrench(self, design, params, state, nu_r):
+        v_flow = nu_r[:3] + jnp.cross(nu_r[3:], design.flow_point)  # (N, 3)
+        speed_sq = v_flow[:, 0] ** 2 + jnp.sum(v_flow * design.normal, axis=-1) ** 2
+        q = design.lift * speed_sq  # (N,)
+        force = (q * state)[:, None] * design.normal
+        force = force.at[:, 0].add(-q * state**2 * design.drag_factor)
+        moment = jnp.cross(design.position, force)
+        return jnp.concatenate([jnp.sum(force, axis=0), jnp.sum(moment, axis=0)])
+
+    def describe(self, names):
+        return (f"fin deflection in [-1, 1] of max_angle (rad, first-order lag; positive lifts along the site's +z), "
+                f"order {list(names)}")
+
+    def privileged(self, params):
+        return jnp.stack([params.max_angle, params.time_constant])
