@@ -1,7 +1,9 @@
-"""Validation figures of the physics against closed-form results, printed by `marinejax validate`.
+"""Validation figures of the physics, printed by `marinejax validate`.
 
-Each row: a quantity measured from the simulator, the closed-form value it must match, and the
-relative difference. The same checks, with their tolerances, are asserted in tests/test_physics.py.
+Each row: a quantity measured from the simulator, the value it must match, and the relative
+difference. ROVs: closed-form results (the same checks, with their tolerances, are asserted in
+tests/test_physics.py). The REMUS 100 torpedo: the figures of its reference implementation
+(`torpedo_table`; asserted in tests/test_remus100.py).
 """
 
 from __future__ import annotations
@@ -11,9 +13,23 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from marinejax.frames import quat_from_euler, quat_to_euler
-from marinejax.physics import VehicleState, rollout
+from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
+from marinejax.physics import VehicleState, initial_state, rollout
 from marinejax.vehicle import Vehicle
+
+# The Marine Systems Simulator's remus100 (Python Vehicle Simulator, commit c717e07, MIT; Fossen 2021,
+# section 8.4.2), run unmodified on its own dynamics with SciPy DOP853 at rtol 1e-9 (2026-12-01).
+# Angles in the reference's FRD convention; a positive rudder turns to starboard, positive stern
+# planes pitch the nose down.
+REMUS100_REFERENCE = {
+    "terminal speed, 1525 rpm": (2.553645562, "m/s"),
+    "turning diameter, rudder 15°": (36.9235, "m"),
+    "turn rate, rudder 15°": (7.77884, "°/s"),
+    "heel into the turn, rudder 15°": (3.0052, "°"),
+    "pitch after 5 s of stern planes 10°": (-42.735, "°"),
+    "depth gained in those 5 s": (4.527, "m"),
+    "roll period, free decay from 10°": (1.0419, "s"),
+}
 
 
 def _steady(lin: float, quad: float, force: float) -> float:
@@ -70,11 +86,56 @@ def print_validation(vehicle: Vehicle, dt: float = 0.05) -> list[tuple[str, floa
     from rich.console import Console
     from rich.table import Table
 
-    rows = validation_table(vehicle, dt=dt)
-    table = Table(title=f"{vehicle.name} ({vehicle.param_set}), physics dt {dt} s: simulator vs closed form")
-    for col in ("quantity", "simulated", "closed form", "unit", "difference"):
+    if vehicle.name == "remus100":
+        rows, against = torpedo_table(vehicle, dt=dt), "reference implementation"
+    else:
+        rows, against = validation_table(vehicle, dt=dt), "closed form"
+    table = Table(title=f"{vehicle.name} ({vehicle.param_set}), physics dt {dt} s: simulator vs {against}")
+    for col in ("quantity", "simulated", against, "unit", "difference"):
         table.add_column(col, justify="left" if col == "quantity" else "right")
     for name, measured, expected, unit in rows:
         table.add_row(name, f"{measured:.4f}", f"{expected:.4f}", unit, f"{100 * (measured - expected) / expected:+.2f} %")
     Console().print(table)
     return rows
+
+
+def torpedo_manoeuvres(vehicle: Vehicle, dt: float = 0.05) -> dict[str, float]:
+    """The REMUS reference's manoeuvres simulated (actions [rudder, stern planes, propeller] in
+    [−1, 1]; the propeller's +1 is its max_rpm): straight at full speed, a steady turn at full rudder
+    (15°) and stern planes at 10° for 5 s from the straight run, a free roll decay at rest. Values in
+    the reference's units and FRD angle conventions (REMUS100_REFERENCE's keys)."""
+    rudder, stern = (vehicle.sys.actuators[i].params.max_angle for i in (0, 1))
+    per_s = int(round(1 / dt))
+
+    def actions(rudder_rad, stern_rad, steps):
+        return np.tile(np.array([rudder_rad / float(rudder), stern_rad / float(stern), 1.0], np.float32), (steps, 1))
+
+    straight = rollout(vehicle, actions(0, 0, 60 * per_s), control_dt=dt)
+    start = initial_state(vehicle, quaternion=straight.quaternion[-1], velocity=straight.velocity[-1],
+                          angular_velocity=straight.angular_velocity[-1], actuators=straight.actuators[-1])
+    turn = rollout(vehicle, actions(math.radians(15), 0, 80 * per_s), start, control_dt=dt)
+    rot = np.asarray(quat_to_mat(turn.quaternion[-1]))
+    xy = np.asarray(turn.position[-50 * per_s:, :2])  # the last 50 s: more than a revolution
+    dive = rollout(vehicle, actions(0, math.radians(10), 5 * per_s), start, control_dt=dt)
+    nose = np.asarray(quat_to_mat(dive.quaternion[-1]))[2, 0]  # world z of the body's x axis
+    rest = initial_state(vehicle, quaternion=(math.cos(math.radians(5)), math.sin(math.radians(5)), 0.0, 0.0))
+    decay = rollout(vehicle, np.tile(np.array([0, 0, -1], np.float32), (120, 1)), rest, control_dt=0.025)
+    roll = np.asarray(quat_to_euler(decay.quaternion))[:, 0]
+    t = np.asarray(decay.time)
+    i = np.where((roll[:-1] > 0) & (roll[1:] <= 0))[0]
+    crossings = t[i] + 0.025 * roll[i] / (roll[i] - roll[i + 1])
+    return {
+        "terminal speed, 1525 rpm": float(np.linalg.norm(straight.velocity[-1])),
+        "turning diameter, rudder 15°": float(np.ptp(xy[:, 0]) + np.ptp(xy[:, 1])) / 2,
+        "turn rate, rudder 15°": -math.degrees(float(rot[2] @ np.asarray(turn.angular_velocity[-1]))),
+        "heel into the turn, rudder 15°": math.degrees(math.atan2(float(rot[2, 1]), float(rot[2, 2]))),
+        "pitch after 5 s of stern planes 10°": math.degrees(math.asin(float(nose))),
+        "depth gained in those 5 s": -float(dive.position[-1, 2] - start.position[2]),
+        "roll period, free decay from 10°": float(np.mean(np.diff(crossings))),
+    }
+
+
+def torpedo_table(vehicle: Vehicle, dt: float = 0.05) -> list[tuple[str, float, float, str]]:
+    """Rows (name, measured, reference, unit) of the REMUS 100 against its reference implementation."""
+    measured = torpedo_manoeuvres(vehicle, dt)
+    return [(name, measured[name], value, unit) for name, (value, unit) in REMUS100_REFERENCE.items()]

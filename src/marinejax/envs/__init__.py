@@ -1,4 +1,4 @@
-"""Registered RL tasks: station keeping and circle, helix and lemniscate tracking, per vehicle.
+"""Registered RL tasks: station keeping and circle, helix and lemniscate tracking for ROVs, the autopilot for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
@@ -18,12 +18,14 @@ from marinejax.envs.registry import (
     register_task,
     register_with_brax,
 )
+from marinejax.envs.autopilot import Autopilot, AutopilotConfig
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.envs.tracking import TrackingConfig, Tracking
 from marinejax.envs.trajectories import TrajectoryConfig
 from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
+register_task("Autopilot", Autopilot)  # torpedo AUVs
 register_task("CircleTracking", Tracking, kind="circle")
 register_task("HelixTracking", Tracking, kind="helix")
 register_task("LemniscateTracking", Tracking, kind="lemniscate")

@@ -76,7 +76,8 @@ class RewardConfig:
     position: distance term of MarineGym's paper, in (0, 1], scale `position_scale` (m);
     precision: exp(−d / precision_scale), sharp near zero error (weights tuned on station keeping); upright: ((up_z + 1)/2)^2;
     heading: (1 + cos(heading error))/2; effort: −mean(action^2); smoothness: −mean(Δaction^2);
-    angular_velocity: −|ω|^2 (rad^2/s^2).
+    angular_velocity: −|ω|^2 (rad^2/s^2); speed (tasks with a speed set-point): exp(−|speed error| /
+    speed_scale).
     """
 
     position: float = 2.0
@@ -88,6 +89,8 @@ class RewardConfig:
     effort: float = 0.02
     smoothness: float = 0.02
     angular_velocity: float = 0.02
+    speed: float = 0.0
+    speed_scale: float = 0.2  # m/s
 
 
 OBSERVATION_MODES = ("state", "sensors")

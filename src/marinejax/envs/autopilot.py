@@ -1,0 +1,194 @@
+"""Autopilot, for vehicles that cannot hover (torpedo AUVs): hold a commanded depth, heading and
+speed, with new set-points drawn during each episode.
+
+Episode: `segments` segments of `segment_duration` s; each draws a depth, heading and speed
+set-point: depth within ±`depth_step` m of the previous one (kept in `depth_range`), heading within
+±`heading_step` rad of the previous one, speed uniform in `speed_range` (m/s). The vehicle starts
+at the first set-point's depth ± `start_depth_error`, on a heading within ±`start_heading_error` of
+it, moving forward at a speed in `speed_range`, its propeller turning accordingly.
+
+Observation (body frame FLU unless stated), size 17 + 2 × number of actions:
+  [0]     depth error, set-point depth − depth (m, world; positive: go deeper), clipped to ±`depth_clip`
+  [1:3]   sin, cos of the heading error (set-point heading − heading)
+  [3]     speed error, set-point speed − surge speed (m/s)
+  [4:7]   world up (0, 0, 1) expressed in the body frame (roll and pitch)
+  [7:10]  linear velocity, m/s
+  [10:13] angular velocity, rad/s
+  [13]    depth set-point / 10 (m, world z)
+  [14:16] sin, cos of the heading set-point (world yaw)
+  [16]    speed set-point, m/s
+  [17:17+n] actuator states, each scaled to [−1, 1] by its command range
+  [17+n:] last action
+The statistics: `position_error` is the depth error (m), with `heading_error_deg` and
+`speed_error` (m/s); the evaluation window is the last `settled` s of each segment.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from marinejax.config import check_range
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, heading_error
+from marinejax.errors import UserError
+from marinejax.frames import quat_from_euler, quat_to_mat
+from marinejax.physics import VehicleState
+
+
+@dataclasses.dataclass(frozen=True)
+class AutopilotConfig(EnvConfig):
+    control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
+    substeps: int = 2  # two 50 ms physics steps per action
+    segments: int = 2
+    segment_duration: float = 30.0  # s per set-point
+    episode_length: int = 600  # = segments × segment_duration / control_dt
+    settled: float = 10.0  # s: the evaluation window is the last `settled` s of each segment
+    depth_range: tuple[float, float] = (-30.0, -5.0)  # m, world z of the depth set-points
+    depth_step: float = 10.0  # m, largest change of the depth set-point
+    heading_step: float = math.pi  # rad, largest change of the heading set-point
+    speed_range: tuple[float, float] = (0.5, 2.0)  # m/s
+    start_depth_error: float = 2.0  # m
+    start_heading_error: float = math.pi / 2  # rad
+    depth_clip: float = 5.0  # m, the observed depth error is clipped to ± this
+    max_distance: float = 25.0  # m of depth error: the episode terminates beyond
+    integral_time_constant: float = 0.0  # the base's position integral does not apply
+    # position: depth term 1/(1 + (e/position_scale)^2); precision: exp(−|e|/precision_scale) of the
+    # depth error e; heading and speed as named; no upright term (a torpedo pitches to change depth)
+    reward: RewardConfig = RewardConfig(upright=0.0, heading=1.0, speed=1.0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.integral_time_constant != 0:
+            raise UserError("config 'integral_time_constant' must be 0 for the autopilot (it observes its set-points instead)")
+        check_range("depth_range", self.depth_range)
+        check_range("speed_range", self.speed_range, low=0.0)
+        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip"):
+            if not getattr(self, name) > 0:
+                raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
+        if self.segments < 1:
+            raise UserError(f"config 'segments' must be >= 1, got {self.segments}")
+        if self.settled > self.segment_duration:
+            raise UserError(f"config 'settled' ({self.settled} s) must not exceed 'segment_duration' ({self.segment_duration} s)")
+
+
+@struct.dataclass
+class SetPoints:
+    depth: jnp.ndarray  # (K,) m, world z
+    heading: jnp.ndarray  # (K,) rad
+    speed: jnp.ndarray  # (K,) m/s
+    yaw: jnp.ndarray  # () rad: the first heading (the base's `task.yaw`)
+
+
+class Autopilot(MarineEnv):
+    config_class = AutopilotConfig
+    vehicle_kinds = ("torpedo",)
+    error_window_description = "last `settled` s of each set-point segment"
+
+    def __init__(self, vehicle, config: AutopilotConfig):
+        super().__init__(vehicle, config)
+        groups = self.plant.sys.actuators
+        # actuator states scaled by their command range, for the observation (looked up once)
+        lo, hi = [], []
+        for g in groups:
+            if g.kind.name == "fin":
+                lo += [-float(g.params.max_angle)] * g.size
+                hi += [float(g.params.max_angle)] * g.size
+            elif g.kind.name == "propeller":
+                lo += [float(g.params.min_rpm)] * g.size
+                hi += [float(g.params.max_rpm)] * g.size
+            else:
+                raise UserError(f"the autopilot task needs fins and propellers; {self.vehicle.name!r} has a {g.kind.name!r} group")
+        self._act_mid = jnp.asarray(np.float32((np.array(lo) + np.array(hi)) / 2))
+        self._act_half = jnp.asarray(np.float32((np.array(hi) - np.array(lo)) / 2))
+        self._propeller = [i for i, n in enumerate(self.vehicle.actuator_names) if n.startswith("propeller")]
+
+    def error_window(self, time):
+        """The last `settled` s of each segment (time: s since the episode started, end of a step)."""
+        c = self.config
+        xp = np if isinstance(time, (np.ndarray, float, int)) else jnp
+        per_segment = int(round(c.segment_duration / c.control_dt))
+        step = xp.round(time / c.control_dt)  # 1, 2, ...: the env accumulates time in float32
+        return xp.mod(step - 1, per_segment) >= per_segment - int(round(c.settled / c.control_dt))
+
+    def _sample_task(self, rng):
+        c = self.config
+        k = jax.random.split(rng, 4)
+        depth0 = jax.random.uniform(k[0], minval=c.depth_range[0], maxval=c.depth_range[1])
+        steps = jax.random.uniform(k[1], (c.segments - 1,), minval=-c.depth_step, maxval=c.depth_step)
+        depth = jnp.clip(depth0 + jnp.concatenate([jnp.zeros(1), jnp.cumsum(steps)]), c.depth_range[0], c.depth_range[1])
+        turns = jax.random.uniform(k[2], (c.segments,), minval=-c.heading_step, maxval=c.heading_step)
+        heading = jnp.cumsum(turns.at[0].set(turns[0] * jnp.pi / c.heading_step))  # the first: any heading
+        speed = jax.random.uniform(k[3], (c.segments,), minval=c.speed_range[0], maxval=c.speed_range[1])
+        return SetPoints(depth=depth, heading=heading, speed=speed, yaw=heading[0])
+
+    def set_point(self, info, upcoming: bool = False):
+        """(depth m, heading rad, speed m/s) of the step just taken (errors and reward), or with
+        `upcoming` of the next one (the observation the next action is chosen from)."""
+        task: SetPoints = info["task"]
+        c = self.config
+        per_segment = int(round(c.segment_duration / c.control_dt))
+        step = jnp.round(info["time"] / c.control_dt).astype(jnp.int32)  # steps taken (time is float32)
+        i = jnp.clip((step if upcoming else step - 1) // per_segment, 0, c.segments - 1)
+        return task.depth[i], task.heading[i], task.speed[i]
+
+    def target_position(self, info) -> jnp.ndarray:
+        """Only the depth is a target (m, world z; x and y are 0): for plots of depth against time."""
+        return jnp.zeros(3).at[2].set(self.set_point(info)[0])
+
+    def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
+        depth, heading, speed = self.set_point(info)
+        return {
+            "heading_error_deg": jnp.degrees(jnp.abs(heading_error(vs.quaternion, heading))),
+            "position_error": jnp.abs(depth - vs.position[2]),
+            "speed_error": jnp.abs(speed - vs.velocity[0]),
+        }
+
+    def _initial_pose(self, rng, task: SetPoints) -> VehicleState:
+        c = self.config
+        k = jax.random.split(rng, 3)
+        depth = task.depth[0] + jax.random.uniform(k[0], minval=-c.start_depth_error, maxval=c.start_depth_error)
+        yaw = task.heading[0] + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
+        speed = jax.random.uniform(k[2], minval=c.speed_range[0], maxval=c.speed_range[1])
+        # the propeller at about the rpm of that speed (the REMUS: 1525 rpm at 2.55 m/s, linear in speed)
+        actuators = jnp.zeros(self.vehicle.num_actuators)
+        for i in self._propeller:
+            actuators = actuators.at[i].set(jnp.clip(speed / 2.55, 0.0, 1.0) * (self._act_mid[i] + self._act_half[i]))
+        return VehicleState(position=jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), quaternion=quat_from_euler(0.0, 0.0, yaw),
+                            velocity=jnp.array([1.0, 0.0, 0.0]) * speed, angular_velocity=jnp.zeros(3), actuators=actuators)
+
+    def task_observation_fields(self) -> dict[str, slice]:
+        n = self.action_size
+        return {"depth_error": slice(0, 1), "heading": slice(1, 3), "speed_error": slice(3, 4), "up": slice(4, 7),
+                "velocity": slice(7, 10), "angular_velocity": slice(10, 13), "set_point_depth": slice(13, 14),
+                "set_point_heading": slice(14, 16), "set_point_speed": slice(16, 17), "actuators": slice(17, 17 + n),
+                "last_action": slice(17 + n, 17 + 2 * n)}
+
+    def observe(self, vs: VehicleState, info, action):
+        c = self.config
+        depth, heading, speed = self.set_point(info, upcoming=True)
+        up_body = quat_to_mat(vs.quaternion)[2, :]
+        dpsi = heading_error(vs.quaternion, heading)
+        return jnp.concatenate([
+            jnp.clip(depth - vs.position[2], -c.depth_clip, c.depth_clip)[None],
+            jnp.stack([jnp.sin(dpsi), jnp.cos(dpsi)]), (speed - vs.velocity[0])[None], up_body, vs.velocity,
+            vs.angular_velocity, (depth / 10.0)[None], jnp.stack([jnp.sin(heading), jnp.cos(heading)]), speed[None],
+            (vs.actuators - self._act_mid) / self._act_half, action,
+        ])
+
+    def reward_terms(self, vs: VehicleState, info, action):
+        depth, heading, speed = self.set_point(info)
+        e = depth - vs.position[2]
+        r = self.config.reward
+        terms = self._attitude_terms(vs, heading, action, info["last_action"])
+        del terms["upright"]
+        return {
+            "position": 1.0 / (1.0 + (e / r.position_scale) ** 2),
+            "precision": jnp.exp(-jnp.abs(e) / r.precision_scale),
+            "speed": jnp.exp(-jnp.abs(speed - vs.velocity[0]) / r.speed_scale),
+            **terms,
+        }
