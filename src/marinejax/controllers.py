@@ -28,11 +28,21 @@ LQR (`lqr_controller`, an LQI: the integral states are the observation's), desig
 hover model with the thrusts as inputs (`lqr_gain`), so it knows which wrenches the vehicle can make;
 weights by Bryson's rule, with the position scale tuned by `tune` like the PID's bandwidth. Same
 feedforward as the PID.
+
+Torpedo autopilot (`torpedo_autopilot`, the autopilot task of torpedo AUVs; Fossen 2021 chapter 16,
+as the REMUS reference implements it): depth by successive loop closure, an outer PI on the depth
+error giving a pitch command (θ_d = K_z (e + ∫e / T_z), limited to ±`max_pitch`; K_z tuned by
+`tune`, the reference's 0.1 rad/m in the grid) and an inner PID on pitch with heave-velocity
+feedback driving the stern planes (the reference's gains: 5, 2, 0.3 per rad, 5 per m/s); heading by
+a PD on the heading error and the yaw rate driving the rudder; speed by propeller feedforward (the shaft speed of the
+steady straight run, linear in speed: max_rpm at `top_speed`) plus a PI on the speed error. Angles
+as the reference's: a positive rudder turns to starboard, positive stern planes pitch the nose down.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import jax
 import jax.numpy as jnp
@@ -255,12 +265,101 @@ def lqr_controller(env: MarineEnv, config: LQRConfig = LQRConfig()) -> Controlle
     return _lqr_law(_hover(env), lqr_gain(env, config))
 
 
+@dataclasses.dataclass(frozen=True)
+class TorpedoAutopilotConfig:
+    """Gains of the torpedo autopilot (module docstring); angles in rad, depths in m, speeds in m/s."""
+
+    depth_gain: float = 0.1  # K_z, rad of pitch command per m of depth error (tuned)
+    depth_integral_time: float = 100.0  # T_z, s
+    max_pitch: float = 0.5  # rad, pitch command limit
+    pitch_gains: tuple[float, float, float] = (5.0, 2.0, 0.3)  # stern planes per rad, per rad/s, per rad s
+    heave_gain: float = 5.0  # stern planes per m/s of heave velocity
+    heading_gain: float = 1.0  # rudder per rad of heading error
+    heading_derivative_time: float = 2.0  # s: rudder per rad/s of yaw rate = heading_gain × this
+    top_speed: float = 2.554  # m/s at the propeller's max_rpm (the REMUS 100's)
+    speed_gains: tuple[float, float] = (0.5, 0.1)  # propeller command per m/s, per m
+
+    def __post_init__(self):
+        check_fields("TorpedoAutopilotConfig", self, strict=True)
+        for name in ("pitch_gains", "speed_gains"):
+            if not all(math.isfinite(v) and v >= 0 for v in getattr(self, name)):
+                raise UserError(f"TorpedoAutopilotConfig '{name}' must be finite and >= 0, got {getattr(self, name)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Torpedo:
+    """What the torpedo autopilot knows of the vehicle and env: the observation layout, the control
+    period and the actuators' order (rudder, stern planes, propeller) and ranges."""
+
+    fields: dict
+    dt: float
+    rudder_max: float  # rad
+    stern_max: float  # rad
+    rpm_range: tuple[float, float]
+
+
+def _torpedo(env: MarineEnv) -> _Torpedo:
+    groups = env.plant.sys.actuators
+    kinds = [g.kind.name for g in groups]
+    if kinds != ["fin", "fin", "propeller"] or "depth_error" not in env.observation_fields():
+        raise UserError(f"the torpedo autopilot needs the autopilot task of a vehicle with a rudder, stern planes and a propeller "
+                        f"(in that order); {env.vehicle.name!r} has {kinds}")
+    return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(groups[0].params.max_angle),
+                    stern_max=float(groups[1].params.max_angle),
+                    rpm_range=(float(groups[2].params.min_rpm), float(groups[2].params.max_rpm)))
+
+
+def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarray:
+    c = config
+    return np.array([c.depth_gain, 1.0 / c.depth_integral_time, c.max_pitch, *c.pitch_gains, c.heave_gain, c.heading_gain,
+                     c.heading_gain * c.heading_derivative_time, c.top_speed, *c.speed_gains])
+
+
+def _torpedo_law(t: _Torpedo, gains) -> Controller:
+    """The autopilot's law with gains `_torpedo_design` (NumPy or traced JAX); carry: the integrals of
+    the depth error (m s), of the pitch error (rad s) and of the speed error (m)."""
+    g = jnp.asarray(gains, jnp.float32)
+    kz, kiz, max_pitch, kp, kd, ki, kw, kpsi, kr, top, ks, kis = (g[i] for i in range(12))
+    f = t.fields
+
+    def act(carry, obs, info):
+        depth_error = obs[f["depth_error"]][0]  # set-point − depth (m, world z up): positive = rise
+        up, omega, v = obs[f["up"]], obs[f["angular_velocity"]], obs[f["velocity"]]
+        nose_up = jnp.arcsin(jnp.clip(up[0], -1.0, 1.0))
+        i_depth, i_pitch, i_speed = carry
+        pitch_cmd = jnp.clip(kz * (depth_error + kiz * i_depth), -max_pitch, max_pitch)
+        # stern planes (positive: nose down), the reference's law in FLU: nose-up rate −ω_y, heave −w
+        stern = kp * (nose_up - pitch_cmd) - kd * omega[1] + ki * i_pitch - kw * v[2]
+        s, c = obs[f["heading"]]
+        rudder = -kpsi * jnp.arctan2(s, c) + kr * omega[2]  # positive: to starboard
+        speed_sp = obs[f["set_point_speed"]][0]
+        speed_error = obs[f["speed_error"]][0]
+        lo, hi = t.rpm_range
+        rpm = hi * speed_sp / top + (hi - lo) * (ks * speed_error + kis * i_speed)
+        action = jnp.stack([rudder / t.rudder_max, stern / t.stern_max, 2 * (rpm - lo) / (hi - lo) - 1])
+        # integrate only while unsaturated (anti-windup)
+        carry = (i_depth + t.dt * depth_error * (jnp.abs(pitch_cmd) < max_pitch),
+                 i_pitch + t.dt * (nose_up - pitch_cmd) * (jnp.abs(stern) < t.stern_max),
+                 i_speed + t.dt * speed_error * (jnp.abs(action[2]) < 1.0))
+        return jnp.clip(action, -1.0, 1.0), carry
+
+    return Controller(init=lambda key: (jnp.zeros(()), jnp.zeros(()), jnp.zeros(())), act=act)
+
+
+def torpedo_autopilot(env: MarineEnv, config: TorpedoAutopilotConfig = TorpedoAutopilotConfig()) -> Controller:
+    """The torpedo autopilot of the module docstring on `env` (the autopilot task), reading its observation."""
+    return _torpedo_law(_torpedo(env), _torpedo_design(env, config))
+
+
 # Tuning grids: one scalar per controller, the rest follows from the model (module docstring).
-# name: (what the scalar is, grid, config of a value, design: (env, config) -> gains, law: (hover, gains) -> Controller)
+# name: (what the scalar is, grid, config of a value, design: (env, config) -> gains,
+#        law: (model, gains) -> Controller, model: env -> what the law knows of the vehicle)
 TUNING_GRIDS = {
     "pid": ("translation bandwidth (rad/s; rotation twice)", (1.0, 2.0, 3.0, 4.0, 6.0),
-            lambda w: PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w), _pid_design, _pid_law),
-    "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_gain, _lqr_law),
+            lambda w: PIDConfig(translation_bandwidth=w, rotation_bandwidth=2 * w), _pid_design, _pid_law, _hover),
+    "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_gain, _lqr_law, _hover),
+    "autopilot": ("depth gain (pitch rad per m)", (0.05, 0.1, 0.2, 0.4, 0.8),
+                  lambda k: TorpedoAutopilotConfig(depth_gain=k), _torpedo_design, _torpedo_law, _torpedo),
 }
 TUNING_SEED = 1  # episodes for tuning; `marinejax eval` evaluates on another seed (12345)
 CONTROLLERS = tuple(TUNING_GRIDS)
@@ -275,8 +374,8 @@ def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED,
 
     if name not in TUNING_GRIDS:
         raise UserError(f"unknown controller {name!r}; valid: {list(CONTROLLERS)}")
-    label, grid, make_config, design, law = TUNING_GRIDS[name]
-    h = _hover(env)
+    label, grid, make_config, design, law, model = TUNING_GRIDS[name]
+    h = model(env)
     stacked = jax.tree.map(lambda *g: jnp.stack([jnp.asarray(x, jnp.float32) for x in g]),
                            *[design(env, make_config(v)) for v in grid])
     steps = env.config.episode_length
@@ -311,4 +410,5 @@ def make_controller(name: str, env: MarineEnv, progress=None) -> tuple[Controlle
     if name == "pid":
         gains = pid_gains(env, config)
         info["gains"] = {k: np.round(getattr(gains, k), 3).tolist() for k in ("kp", "kd", "ki")}
-    return TUNING_GRIDS[name][4](_hover(env), TUNING_GRIDS[name][3](env, config)), info
+    _, _, _, design, law, model = TUNING_GRIDS[name]
+    return law(model(env), design(env, config)), info

@@ -81,4 +81,4 @@ def test_it_is_a_torpedo_task_and_bad_settings_are_refused():
     with pytest.raises(UserError, match="integral_time_constant"):
         mj.make("Remus100-Autopilot", integral_time_constant=2.0)
     with pytest.raises(UserError, match="settled"):
-        mj.make("Remus100-Autopilot", settled=40.0)
+        mj.make("Remus100-Autopilot", settled=70.0)

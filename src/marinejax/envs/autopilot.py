@@ -8,7 +8,7 @@ at the first set-point's depth ± `start_depth_error`, on a heading within ±`st
 it, moving forward at a speed in `speed_range`, its propeller turning accordingly.
 
 Observation (body frame FLU unless stated), size 17 + 2 × number of actions:
-  [0]     depth error, set-point depth − depth (m, world; positive: go deeper), clipped to ±`depth_clip`
+  [0]     depth error, set-point z − z (m, world z up; positive: rise), clipped to ±`depth_clip`
   [1:3]   sin, cos of the heading error (set-point heading − heading)
   [3]     speed error, set-point speed − surge speed (m/s)
   [4:7]   world up (0, 0, 1) expressed in the body frame (roll and pitch)
@@ -45,8 +45,8 @@ class AutopilotConfig(EnvConfig):
     control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
     substeps: int = 2  # two 50 ms physics steps per action
     segments: int = 2
-    segment_duration: float = 30.0  # s per set-point
-    episode_length: int = 600  # = segments × segment_duration / control_dt
+    segment_duration: float = 60.0  # s per set-point: a 180° turn takes the REMUS 23 s at full speed, 70 s at 0.5 m/s
+    episode_length: int = 1200  # = segments × segment_duration / control_dt
     settled: float = 10.0  # s: the evaluation window is the last `settled` s of each segment
     depth_range: tuple[float, float] = (-30.0, -5.0)  # m, world z of the depth set-points
     depth_step: float = 10.0  # m, largest change of the depth set-point
