@@ -17,7 +17,6 @@ import argparse
 import sys
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import marinejax as mj

@@ -67,7 +67,7 @@ import numpy as np
 from marinejax.errors import MissingFileError, UserError
 from marinejax.frames import quat_from_euler, quat_to_euler
 from marinejax.physics import VehicleState
-from marinejax.plant import Plant, PlantConfig, PlantParams
+from marinejax.plant import Plant, PlantParams
 from marinejax.actuators.base import lag_step
 from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200, t200_thrust
 

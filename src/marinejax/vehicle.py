@@ -12,14 +12,13 @@ import dataclasses
 from importlib import resources
 from pathlib import Path
 
-import jax.numpy as jnp
 import mujoco
 import numpy as np
 from flax import struct
 from mujoco import mjx
 
 from marinejax.errors import MissingFileError, UserError
-from marinejax.actuators import ActuatorGroup, declared_groups, load_actuators
+from marinejax.actuators import ActuatorGroup, custom_text, declared_groups, load_actuators
 from marinejax.hydro.forces import added_mass_at_cg
 from marinejax.hydro.params import HydroParams
 
@@ -132,14 +131,6 @@ class Vehicle:
         return "; then ".join(g.kind.describe(g.names) for g in self.sys.actuators)
 
 
-def _text(m: mujoco.MjModel, name: str) -> str | None:
-    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
-    if i < 0:
-        return None
-    adr, size = m.text_adr[i], m.text_size[i]
-    return bytes(m.text_data[adr : adr + size - 1]).decode()
-
-
 def _numerics(m: mujoco.MjModel, prefix: str) -> dict[str, np.ndarray]:
     out = {}
     for i in range(m.nnumeric):
@@ -210,7 +201,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
     body = 1
     actuators = load_actuators(m, body, where)
     sets = _param_sets(m, where)
-    default = _text(m, _PREFIX + "default_set")
+    default = custom_text(m, _PREFIX + "default_set")
     param_set = param_set or default
     file_values, actuator_file = {}, {}
     source = None
@@ -257,7 +248,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         name=name,
         param_set=param_set,
         param_sets=tuple(sets),
-        source=source or _text(m, f"{_PREFIX}{param_set}:source") or "",
+        source=source or custom_text(m, f"{_PREFIX}{param_set}:source") or "",
         mj_model=m,
         sys=sys,
         actuator_names=tuple(n for g in actuators for n in g.names),

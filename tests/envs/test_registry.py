@@ -1,7 +1,6 @@
 """The registry: vehicles come from their MJCF files, tasks from one registration each."""
 
 import os
-import shutil
 import subprocess
 import sys
 import uuid

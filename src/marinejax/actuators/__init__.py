@@ -42,7 +42,8 @@ for _kind in (T200(), Propeller(), Fin()):
     register_kind(_kind)
 
 
-def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
+def custom_text(m: mujoco.MjModel, name: str) -> str | None:
+    """The MJCF custom text `name` of model `m`, or None."""
     i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
     if i < 0:
         return None
@@ -52,7 +53,7 @@ def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
 
 def declared_groups(m: mujoco.MjModel, where: str) -> list[tuple[str, str]]:
     """The (site prefix, kind) pairs of the vehicle's `marinejax:actuators` declaration."""
-    text = _custom_text(m, DECLARATION)
+    text = custom_text(m, DECLARATION)
     if not text or not text.split():
         raise UserError(f"{where}: no actuators declared; add <text name=\"{DECLARATION}\" data=\"<site prefix>:<kind> ...\"/> "
                         f"to its <custom> section (kinds: {list_kinds()})")
@@ -92,7 +93,7 @@ def load_actuators(m: mujoco.MjModel, body: int, where: str) -> tuple[ActuatorGr
         for i in range(m.ntext):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_TEXT, i) or ""
             if name.startswith(field_prefix):
-                settings[name[len(field_prefix):]] = _custom_text(m, name)
+                settings[name[len(field_prefix):]] = custom_text(m, name)
         kind = _KINDS[kind_name]
         design, params = kind.load(m, ids, settings, f"{where}, actuator group {prefix!r} ({kind_name})")
         groups.append(ActuatorGroup(kind=kind, names=tuple(m.site(i).name for i in ids), design=design, params=params))
@@ -135,5 +136,5 @@ def wrench(groups: tuple[ActuatorGroup, ...], state: jnp.ndarray, nu_r: jnp.ndar
     return total
 
 
-__all__ = ["advance", "targets", "wrench", "ActuatorGroup", "ActuatorKind", "allocation_matrix", "declared_groups", "lag_step", "list_kinds",
+__all__ = ["advance", "custom_text", "targets", "wrench", "ActuatorGroup", "ActuatorKind", "allocation_matrix", "declared_groups", "lag_step", "list_kinds",
            "load_actuators", "register_kind"]

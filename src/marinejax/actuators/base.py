@@ -45,8 +45,9 @@ class ActuatorKind:
         raise NotImplementedError
 
     def advance(self, design, params, state: jnp.ndarray, target: jnp.ndarray, dt) -> jnp.ndarray:
-        """(N,) state after dt (s) moving from `state` towards `target` (the actuator's own dynamics)."""
-        raise NotImplementedError
+        """(N,) state after dt (s) moving from `state` towards `target` (the actuator's own dynamics);
+        by default the exact first-order lag of time constant `params.time_constant` (s)."""
+        return lag_step(state, target, dt, params.time_constant)
 
     def wrench(self, design, params, state: jnp.ndarray, nu_r: jnp.ndarray) -> jnp.ndarray:
         """(6,) body wrench [N, N m about the CG], body frame FLU, of the group at `state`, with the
@@ -105,6 +106,38 @@ def allocation_matrix(positions: np.ndarray, directions: np.ndarray) -> np.ndarr
     directions = np.asarray(directions, dtype=float)
     directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
     return np.concatenate([directions.T, np.cross(positions, directions).T], axis=0)
+
+
+def scalar_settings(settings: dict[str, Any], lower: dict[str, float | None], optional: tuple[str, ...], where: str) -> dict[str, float]:
+    """The one-number settings named in `lower` (each at least its lower bound, if not None), or a
+    UserError naming the setting, its bound and the valid names."""
+    out = {}
+    for key, low in lower.items():
+        if key not in settings:
+            raise UserError(f"{where}: missing setting '{key}' (settings: {sorted(lower)}, optional {list(optional)})")
+        value = np.asarray(settings[key], float).reshape(-1)
+        if value.size != 1 or not np.isfinite(value[0]) or (low is not None and value[0] < low):
+            bound = "" if low is None else f" >= {low}"
+            raise UserError(f"{where}: setting '{key}' must be one finite number{bound}, got {value.tolist()}")
+        out[key] = float(value[0])
+    return out
+
+
+def flow_points(settings: dict[str, Any], positions: np.ndarray, where: str) -> np.ndarray:
+    """(N, 3) m, body FLU from the CG: where each actuator takes the water velocity, the setting
+    `flow_point` (3 numbers, one point for the group) or, without it, each site's own position."""
+    if "flow_point" not in settings:
+        return positions
+    flow = np.asarray(settings["flow_point"], float).reshape(-1)
+    if flow.size != 3 or not np.all(np.isfinite(flow)):
+        raise UserError(f"{where}: setting 'flow_point' must be 3 finite numbers (m, body FLU from the CG), got {flow.tolist()}")
+    return np.broadcast_to(flow, positions.shape)
+
+
+def body_wrench(positions: jnp.ndarray, forces: jnp.ndarray, moments: jnp.ndarray | None = None) -> jnp.ndarray:
+    """(6,) wrench about the CG of forces (N, 3) acting at positions (N, 3) plus pure moments (N, 3)."""
+    moment = jnp.cross(positions, forces) if moments is None else jnp.cross(positions, forces) + moments
+    return jnp.concatenate([jnp.sum(forces, axis=0), jnp.sum(moment, axis=0)])
 
 
 def site_frames(m: mujoco.MjModel, sites: list[int]) -> tuple[np.ndarray, np.ndarray]:

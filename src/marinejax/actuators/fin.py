@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.actuators.base import ActuatorKind, lag_step, site_frames
+from marinejax.actuators.base import ActuatorKind, body_wrench, flow_points, scalar_settings, site_frames
 from marinejax.errors import UserError
 
 SETTINGS = {"area": 1e-9, "lift_slope": 0.0, "max_angle": 1e-6, "time_constant": 0.0, "drag_factor": 0.0, "fluid_density": 1e-6}
@@ -57,31 +57,17 @@ class Fin(ActuatorKind):
 
     def load(self, m, sites, settings, where):
         self.check_settings(settings, tuple(SETTINGS) + OPTIONAL, where)
-        v = {}
-        for key, low in SETTINGS.items():
-            if key not in settings:
-                raise UserError(f"{where}: missing setting '{key}' (settings: {sorted(SETTINGS)}, optional {list(OPTIONAL)})")
-            value = np.asarray(settings[key], float).reshape(-1)
-            if value.size != 1 or not np.isfinite(value[0]) or value[0] < low:
-                raise UserError(f"{where}: setting '{key}' must be one finite number >= {low}, got {value.tolist()}")
-            v[key] = float(value[0])
+        v = scalar_settings(settings, SETTINGS, OPTIONAL, where)
         if v["max_angle"] > MAX_ANGLE:
             raise UserError(f"{where}: setting 'max_angle' is in rad and must be <= pi/2, got {v['max_angle']}")
         positions, rotations = site_frames(m, sites)
-        flow = np.asarray(settings.get("flow_point", np.full(3, np.nan)), float).reshape(-1)
-        if flow.size != 3:
-            raise UserError(f"{where}: setting 'flow_point' must be 3 numbers (m, body FLU from the CG), got {flow.tolist()}")
-        flow_points = positions if np.isnan(flow).all() else np.broadcast_to(flow, positions.shape)
         f32 = lambda a: jnp.asarray(np.float32(a))  # noqa: E731  (host casts: no compiled conversion)
-        design = FinDesign(position=f32(positions), normal=f32(rotations[:, :, 2]), flow_point=f32(flow_points),
+        design = FinDesign(position=f32(positions), normal=f32(rotations[:, :, 2]), flow_point=f32(flow_points(settings, positions, where)),
                            lift=f32(0.5 * v["fluid_density"] * v["area"] * v["lift_slope"]), drag_factor=f32(v["drag_factor"]))
         return design, FinParams(max_angle=f32(v["max_angle"]), time_constant=f32(v["time_constant"]))
 
     def target(self, design, params, command):
         return jnp.clip(command, -1.0, 1.0) * params.max_angle
-
-    def advance(self, design, params, state, target, dt):
-        return lag_step(state, target, dt, params.time_constant)
 
     def wrench(self, design, params, state, nu_r):
         v_flow = nu_r[:3] + jnp.cross(nu_r[3:], design.flow_point)  # (N, 3)
@@ -89,8 +75,7 @@ class Fin(ActuatorKind):
         q = design.lift * speed_sq  # (N,)
         force = (q * state)[:, None] * design.normal
         force = force.at[:, 0].add(-q * state**2 * design.drag_factor)
-        moment = jnp.cross(design.position, force)
-        return jnp.concatenate([jnp.sum(force, axis=0), jnp.sum(moment, axis=0)])
+        return body_wrench(design.position, force)
 
     def describe(self, names):
         return (f"fin deflection in [-1, 1] of max_angle (rad, first-order lag; positive lifts along the site's +z), "

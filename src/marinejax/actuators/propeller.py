@@ -25,15 +25,14 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.actuators.base import ActuatorKind, lag_step, site_frames
+from marinejax.actuators.base import ActuatorKind, body_wrench, flow_points, scalar_settings, site_frames
 from marinejax.errors import UserError
 
-SETTINGS = {  # name → (size, lower bound or None)
-    "diameter": (1, 1e-6), "kt0": (1, None), "kq0": (1, None), "kt_max": (1, None), "kq_max": (1, None),
-    "j_max": (1, 1e-6), "wake_fraction": (1, 0.0), "thrust_deduction": (1, 0.0), "torque_scale": (1, None),
-    "min_rpm": (1, None), "max_rpm": (1, None), "time_constant": (1, 0.0), "fluid_density": (1, 1e-6),
+SETTINGS = {  # name → lower bound (None: any finite number)
+    "diameter": 1e-6, "kt0": None, "kq0": None, "kt_max": None, "kq_max": None, "j_max": 1e-6, "wake_fraction": 0.0,
+    "thrust_deduction": 0.0, "torque_scale": None, "min_rpm": None, "max_rpm": None, "time_constant": 0.0, "fluid_density": 1e-6,
 }
-OPTIONAL = {"flow_point": 3}
+OPTIONAL = ("flow_point",)
 
 
 @struct.dataclass
@@ -66,27 +65,15 @@ class Propeller(ActuatorKind):
     name = "propeller"
 
     def load(self, m, sites, settings, where):
-        self.check_settings(settings, tuple(SETTINGS) + tuple(OPTIONAL), where)
-        v = {}
-        for key, (size, low) in SETTINGS.items():
-            if key not in settings:
-                raise UserError(f"{where}: missing setting '{key}' (settings: {sorted(SETTINGS)}, optional {sorted(OPTIONAL)})")
-            value = np.asarray(settings[key], float).reshape(-1)
-            if value.size != size or not np.all(np.isfinite(value)) or (low is not None and value[0] < low):
-                bound = "" if low is None else f" >= {low}"
-                raise UserError(f"{where}: setting '{key}' must be {size} finite number(s){bound}, got {value.tolist()}")
-            v[key] = float(value[0])
+        self.check_settings(settings, tuple(SETTINGS) + OPTIONAL, where)
+        v = scalar_settings(settings, SETTINGS, OPTIONAL, where)
         if not v["min_rpm"] < v["max_rpm"]:
             raise UserError(f"{where}: min_rpm ({v['min_rpm']}) must be below max_rpm ({v['max_rpm']})")
         positions, rotations = site_frames(m, sites)
-        flow = np.asarray(settings.get("flow_point", np.full(3, np.nan)), float).reshape(-1)
-        if flow.size != 3:
-            raise UserError(f"{where}: setting 'flow_point' must be 3 numbers (m, body FLU from the CG), got {flow.tolist()}")
-        flow_points = positions if np.isnan(flow).all() else np.broadcast_to(flow, positions.shape)
         f32 = lambda a: jnp.asarray(np.float32(a))  # noqa: E731  (host casts: no compiled conversion)
         rho, d = v["fluid_density"], v["diameter"]
         design = PropellerDesign(
-            position=f32(positions), axis=f32(rotations[:, :, 2]), flow_point=f32(flow_points),
+            position=f32(positions), axis=f32(rotations[:, :, 2]), flow_point=f32(flow_points(settings, positions, where)),
             rho_d4=f32(rho * d**4), rho_d5=f32(rho * d**5), diameter=f32(d), kt0=f32(v["kt0"]), kq0=f32(v["kq0"]),
             kt_slope=f32((v["kt_max"] - v["kt0"]) / v["j_max"]), kq_slope=f32((v["kq_max"] - v["kq0"]) / v["j_max"]),
             wake_fraction=f32(v["wake_fraction"]), thrust_deduction=f32(v["thrust_deduction"]), torque_scale=f32(v["torque_scale"]))
@@ -96,9 +83,6 @@ class Propeller(ActuatorKind):
     def target(self, design, params, command):
         u = jnp.clip(command, -1.0, 1.0)
         return params.min_rpm + 0.5 * (u + 1.0) * (params.max_rpm - params.min_rpm)
-
-    def advance(self, design, params, state, target, dt):
-        return lag_step(state, target, dt, params.time_constant)
 
     def thrust_torque(self, design, state, nu_r):
         """(thrust (N,) N, torque (N,) N m) of each propeller at shaft speed `state` (rev/min)."""
@@ -115,8 +99,7 @@ class Propeller(ActuatorKind):
     def wrench(self, design, params, state, nu_r):
         thrust, torque = self.thrust_torque(design, state, nu_r)
         force = ((1.0 - design.thrust_deduction) * thrust)[:, None] * design.axis
-        moment = jnp.cross(design.position, force) + (design.torque_scale * torque)[:, None] * design.axis
-        return jnp.concatenate([jnp.sum(force, axis=0), jnp.sum(moment, axis=0)])
+        return body_wrench(design.position, force, (design.torque_scale * torque)[:, None] * design.axis)
 
     def describe(self, names):
         return (f"propeller speed in [-1, 1]: -1 = min_rpm, +1 = max_rpm (rev/min, first-order lag; positive speed "

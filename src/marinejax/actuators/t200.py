@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.actuators.base import ActuatorKind, allocation_matrix, lag_step, site_frames
+from marinejax.actuators.base import ActuatorKind, allocation_matrix, site_frames
 from marinejax.errors import UserError
 
 KGF = 9.80665  # N per kgf
@@ -148,9 +148,6 @@ class T200(ActuatorKind):
 
     def target(self, design, params, command):
         return params.gain * t200_thrust(design.curve, command, params.voltage)
-
-    def advance(self, design, params, state, target, dt):
-        return lag_step(state, target, dt, params.time_constant)
 
     def wrench(self, design, params, state, nu_r):
         return design.allocation @ state

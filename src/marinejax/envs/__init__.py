@@ -37,6 +37,8 @@ register_task("HelixTrackingFast", Tracking, config=_FAST, kind="helix")
 register_task("LemniscateTrackingFast", Tracking, config=_FAST, kind="lemniscate")
 
 __all__ = [
+    "Autopilot",
+    "AutopilotConfig",
     "CurrentConfig",
     "DisturbanceConfig",
     "EnvConfig",
