@@ -128,7 +128,7 @@ class Vehicle:
 
     def describe_action(self) -> str:
         """What each component of the action means (units, signs, order), from the actuator kinds."""
-        return "; then ".join(g.kind.describe(g.names) for g in self.sys.actuators)
+        return "; then ".join(g.kind.describe(g.names, g.params) for g in self.sys.actuators)
 
 
 def _numerics(m: mujoco.MjModel, prefix: str) -> dict[str, np.ndarray]:

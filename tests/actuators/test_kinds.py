@@ -51,7 +51,7 @@ class TestFin(ActuatorKind):
         force = design.area_lift * state[0] * local[0] * jnp.abs(local[0]) * design.normal
         return jnp.concatenate([force, jnp.cross(design.position, force)])
 
-    def describe(self, names):
+    def describe(self, names, params):
         return f"fin deflection in [-1, 1] of max_angle, order {list(names)}"
 
 

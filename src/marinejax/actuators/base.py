@@ -54,8 +54,9 @@ class ActuatorKind:
         vehicle moving at `nu_r` (6,) relative to the water (body frame, m/s and rad/s)."""
         raise NotImplementedError
 
-    def describe(self, names: tuple[str, ...]) -> str:
-        """What the commands mean (units, sign, order), for exports and documentation."""
+    def describe(self, names: tuple[str, ...], params) -> str:
+        """What the commands of a group with sites `names` and nominal `params` mean (units, range,
+        sign, order), for exports and documentation."""
         raise NotImplementedError
 
     def randomize(self, params, draw: Draw, config) -> Any:

@@ -77,9 +77,10 @@ class Fin(ActuatorKind):
         force = force.at[:, 0].add(-q * state**2 * design.drag_factor)
         return body_wrench(design.position, force)
 
-    def describe(self, names):
-        return (f"fin deflection in [-1, 1] of max_angle (rad, first-order lag; positive lifts along the site's +z), "
-                f"order {list(names)}")
+    def describe(self, names, params):
+        angle = float(params.max_angle)
+        return (f"fin deflection in [-1, 1] of ±{angle:.4g} rad (±{np.degrees(angle):.3g}°; first-order lag; positive "
+                f"lifts along the site's +z), order {list(names)}")
 
     def privileged(self, params):
         return jnp.stack([params.max_angle, params.time_constant])

@@ -101,9 +101,9 @@ class Propeller(ActuatorKind):
         force = ((1.0 - design.thrust_deduction) * thrust)[:, None] * design.axis
         return body_wrench(design.position, force, (design.torque_scale * torque)[:, None] * design.axis)
 
-    def describe(self, names):
-        return (f"propeller speed in [-1, 1]: -1 = min_rpm, +1 = max_rpm (rev/min, first-order lag; positive speed "
-                f"pushes along the site's +z), order {list(names)}")
+    def describe(self, names, params):
+        return (f"propeller speed in [-1, 1]: -1 = {float(params.min_rpm):.6g} rev/min, +1 = {float(params.max_rpm):.6g} "
+                f"rev/min (first-order lag; positive speed pushes along the site's +z), order {list(names)}")
 
     def privileged(self, params):
         return jnp.stack([params.max_rpm, params.time_constant])

@@ -152,7 +152,7 @@ class T200(ActuatorKind):
     def wrench(self, design, params, state, nu_r):
         return design.allocation @ state
 
-    def describe(self, names):
+    def describe(self, names, params):
         return f"T200 throttle per thruster in [-1, 1] ((PWM - 1500 us)/400 us; positive pushes along the site's +z), order {list(names)}"
 
     def randomize(self, params, draw, config):
