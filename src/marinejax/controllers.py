@@ -53,6 +53,7 @@ from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
+from marinejax.actuators import state_ranges
 from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200
 
 
@@ -304,9 +305,9 @@ def _torpedo(env: MarineEnv) -> _Torpedo:
     if kinds != ["fin", "fin", "propeller"] or "depth_error" not in env.observation_fields():
         raise UserError(f"the torpedo autopilot needs the autopilot task of a vehicle with a rudder, stern planes and a propeller "
                         f"(in that order); {env.vehicle.name!r} has {kinds}")
-    return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(groups[0].params.max_angle),
-                    stern_max=float(groups[1].params.max_angle),
-                    rpm_range=(float(groups[2].params.min_rpm), float(groups[2].params.max_rpm)))
+    lo, hi = state_ranges(groups)
+    return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(hi[0]), stern_max=float(hi[1]),
+                    rpm_range=(float(lo[2]), float(hi[2])))
 
 
 def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarray:

@@ -126,6 +126,12 @@ def advance(groups: tuple[ActuatorGroup, ...], state: jnp.ndarray, target: jnp.n
                   for g, s, t in zip(groups, _parts(groups, state), _parts(groups, target))])
 
 
+def state_ranges(groups: tuple[ActuatorGroup, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(states at command −1, states at command +1), each (N,) in action order (host arrays)."""
+    ranges = [g.kind.state_range(g.design, g.params) for g in groups]
+    return np.concatenate([lo for lo, _ in ranges]), np.concatenate([hi for _, hi in ranges])
+
+
 def wrench(groups: tuple[ActuatorGroup, ...], state: jnp.ndarray, nu_r: jnp.ndarray) -> jnp.ndarray:
     """(6,) body wrench [N, N m about the CG], FLU, of all actuators at `state`, moving at `nu_r`
     (6,) relative to the water (body frame)."""
@@ -136,5 +142,5 @@ def wrench(groups: tuple[ActuatorGroup, ...], state: jnp.ndarray, nu_r: jnp.ndar
     return total
 
 
-__all__ = ["advance", "custom_text", "targets", "wrench", "ActuatorGroup", "ActuatorKind", "allocation_matrix", "declared_groups", "lag_step", "list_kinds",
+__all__ = ["advance", "custom_text", "state_ranges", "targets", "wrench", "ActuatorGroup", "ActuatorKind", "allocation_matrix", "declared_groups", "lag_step", "list_kinds",
            "load_actuators", "register_kind"]

@@ -59,6 +59,10 @@ class ActuatorKind:
         sign, order), for exports and documentation."""
         raise NotImplementedError
 
+    def state_range(self, design, params) -> tuple[np.ndarray, np.ndarray]:
+        """(states at command −1, states at command +1), each (N,), in the state's unit."""
+        raise NotImplementedError
+
     def randomize(self, params, draw: Draw, config) -> Any:
         """`params` perturbed for one episode within `config` (a RandomizationConfig)."""
         return params

@@ -77,6 +77,10 @@ class Fin(ActuatorKind):
         force = force.at[:, 0].add(-q * state**2 * design.drag_factor)
         return body_wrench(design.position, force)
 
+    def state_range(self, design, params):
+        angle = np.full(design.position.shape[0], float(params.max_angle))
+        return -angle, angle
+
     def describe(self, names, params):
         angle = float(params.max_angle)
         return (f"fin deflection in [-1, 1] of ±{angle:.4g} rad (±{np.degrees(angle):.3g}°; first-order lag; positive "

@@ -101,6 +101,10 @@ class Propeller(ActuatorKind):
         force = ((1.0 - design.thrust_deduction) * thrust)[:, None] * design.axis
         return body_wrench(design.position, force, (design.torque_scale * torque)[:, None] * design.axis)
 
+    def state_range(self, design, params):
+        n = design.position.shape[0]
+        return np.full(n, float(params.min_rpm)), np.full(n, float(params.max_rpm))
+
     def describe(self, names, params):
         return (f"propeller speed in [-1, 1]: -1 = {float(params.min_rpm):.6g} rev/min, +1 = {float(params.max_rpm):.6g} "
                 f"rev/min (first-order lag; positive speed pushes along the site's +z), order {list(names)}")

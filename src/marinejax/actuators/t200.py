@@ -155,6 +155,10 @@ class T200(ActuatorKind):
     def describe(self, names, params):
         return f"T200 throttle per thruster in [-1, 1] ((PWM - 1500 us)/400 us; positive pushes along the site's +z), order {list(names)}"
 
+    def state_range(self, design, params):
+        thrust = np.asarray(self.target(design, params, -1.0)), np.asarray(self.target(design, params, 1.0))
+        return tuple(np.broadcast_to(t, params.gain.shape) for t in thrust)
+
     def randomize(self, params, draw, config):
         return params.replace(
             gain=params.gain * draw(config.thruster_gain, params.gain.shape),

@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from marinejax.actuators import state_ranges
 from marinejax.config import check_range
 from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, heading_error
 from marinejax.errors import UserError
@@ -55,6 +56,7 @@ class AutopilotConfig(EnvConfig):
     start_depth_error: float = 2.0  # m
     start_heading_error: float = math.pi / 2  # rad
     depth_clip: float = 5.0  # m, the observed depth error is clipped to ± this
+    top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed, linear in speed
     max_distance: float = 25.0  # m of depth error: the episode terminates beyond
     integral_time_constant: float = 0.0  # the base's position integral does not apply
     # position: depth term 1/(1 + (e/position_scale)^2); precision: exp(−|e|/precision_scale) of the
@@ -67,7 +69,7 @@ class AutopilotConfig(EnvConfig):
             raise UserError("config 'integral_time_constant' must be 0 for the autopilot (it observes its set-points instead)")
         check_range("depth_range", self.depth_range)
         check_range("speed_range", self.speed_range, low=0.0)
-        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip"):
+        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip", "top_speed"):
             if not getattr(self, name) > 0:
                 raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
         if self.segments < 1:
@@ -93,19 +95,13 @@ class Autopilot(MarineEnv):
         super().__init__(vehicle, config)
         groups = self.plant.sys.actuators
         # actuator states scaled by their command range, for the observation (looked up once)
-        lo, hi = [], []
-        for g in groups:
-            if g.kind.name == "fin":
-                lo += [-float(g.params.max_angle)] * g.size
-                hi += [float(g.params.max_angle)] * g.size
-            elif g.kind.name == "propeller":
-                lo += [float(g.params.min_rpm)] * g.size
-                hi += [float(g.params.max_rpm)] * g.size
-            else:
-                raise UserError(f"the autopilot task needs fins and propellers; {self.vehicle.name!r} has a {g.kind.name!r} group")
-        self._act_mid = jnp.asarray(np.float32((np.array(lo) + np.array(hi)) / 2))
-        self._act_half = jnp.asarray(np.float32((np.array(hi) - np.array(lo)) / 2))
-        self._propeller = [i for i, n in enumerate(self.vehicle.actuator_names) if n.startswith("propeller")]
+        lo, hi = state_ranges(groups)
+        self._act_lo, self._act_hi = jnp.asarray(np.float32(lo)), jnp.asarray(np.float32(hi))
+        self._act_mid, self._act_half = jnp.asarray(np.float32((lo + hi) / 2)), jnp.asarray(np.float32((hi - lo) / 2))
+        kinds = np.concatenate([[g.kind.name] * g.size for g in groups])
+        self._propeller = jnp.asarray(kinds == "propeller")
+        if not np.any(kinds == "propeller"):
+            raise UserError(f"the autopilot task needs a propeller; {self.vehicle.name!r} has actuator kinds {sorted(set(kinds))}")
 
     def error_window(self, time):
         """The last `settled` s of each segment (time: s since the episode started, end of a step)."""
@@ -154,10 +150,9 @@ class Autopilot(MarineEnv):
         depth = task.depth[0] + jax.random.uniform(k[0], minval=-c.start_depth_error, maxval=c.start_depth_error)
         yaw = task.heading[0] + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
         speed = jax.random.uniform(k[2], minval=c.speed_range[0], maxval=c.speed_range[1])
-        # the propeller at about the rpm of that speed (the REMUS: 1525 rpm at 2.55 m/s, linear in speed)
-        actuators = jnp.zeros(self.vehicle.num_actuators)
-        for i in self._propeller:
-            actuators = actuators.at[i].set(jnp.clip(speed / 2.55, 0.0, 1.0) * (self._act_mid[i] + self._act_half[i]))
+        # the propeller at about the shaft speed of that forward speed (linear in speed), fins at 0
+        shaft = self._act_lo + jnp.clip(speed / c.top_speed, 0.0, 1.0) * (self._act_hi - self._act_lo)
+        actuators = jnp.where(self._propeller, shaft, 0.0)
         return VehicleState(position=jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), quaternion=quat_from_euler(0.0, 0.0, yaw),
                             velocity=jnp.array([1.0, 0.0, 0.0]) * speed, angular_velocity=jnp.zeros(3), actuators=actuators)
 

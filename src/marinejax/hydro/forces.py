@@ -66,17 +66,19 @@ def coriolis_force_diagonal(mass_diag: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndar
     """C(ν)ν (6,) for a diagonal mass matrix diag(mass_diag), without forming C: with a = M11 v,
     b = M22 ω, C(ν)ν = [ω × a, v × a + ω × b]. Equal to coriolis_matrix(diag(mass_diag), ν) @ ν."""
     v, w = nu[:3], nu[3:]
-    a, b = mass_diag[:3] * v, mass_diag[3:] * w
+    return _kirchhoff(v, w, mass_diag[:3] * v, mass_diag[3:] * w)
+
+
+def _kirchhoff(v: jnp.ndarray, w: jnp.ndarray, a: jnp.ndarray, b: jnp.ndarray) -> jnp.ndarray:
+    """C(ν)ν = [ω × a, v × a + ω × b] from the momenta [a; b] = M ν (Kirchhoff's form)."""
     return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
 
 
 def coriolis_force(mass_matrix: jnp.ndarray, nu: jnp.ndarray) -> jnp.ndarray:
     """C(ν)ν (6,) for a symmetric mass matrix (6, 6), without forming C: with [a; b] = M ν,
     C(ν)ν = [ω × a, v × a + ω × b]. Equal to coriolis_matrix(mass_matrix, ν) @ ν."""
-    v, w = nu[:3], nu[3:]
-    ab = mass_matrix @ nu
-    a, b = ab[:3], ab[3:]
-    return jnp.concatenate([jnp.cross(w, a), jnp.cross(v, a) + jnp.cross(w, b)])
+    momenta = mass_matrix @ nu
+    return _kirchhoff(nu[:3], nu[3:], momenta[:3], momenta[3:])
 
 
 def _damping_diagonal(params: HydroParams, nu_r: jnp.ndarray) -> jnp.ndarray:

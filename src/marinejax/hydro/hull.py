@@ -29,19 +29,19 @@ from flax import struct
 
 from marinejax.errors import UserError
 
-# file fields (a parameter set's `marinejax:<set>:<field>`) → size; all or none must be given
-FIELDS = {
-    "hull_lift_area": 1,  # S, m²
-    "hull_span": 1,  # b, m
-    "hull_drag_coefficient": 1,  # C_D0 on the area S
-    "hull_oswald_efficiency": 1,  # e
-    "crossflow_drag_coefficient": 1,  # 2-D C_d of a hull section
-    "crossflow_height": 1,  # T, m: the projected height of a section
-    "crossflow_length": 1,  # L, m: the length the strips cover, centred on the reference point
-    "crossflow_strips": 1,  # n
-    "crossflow_heave": 1,  # 1: also in heave and pitch; 0: sway and yaw only (the reference)
-    "crossflow_reference_strips": 1,  # 1: the reference's n + 1 full-weight strips; 0: n cell centres
-}
+# file fields (a parameter set's `marinejax:<set>:<field>`, one number each); all or none must be given
+FIELDS = (
+    "hull_lift_area",  # S, m²
+    "hull_span",  # b, m
+    "hull_drag_coefficient",  # C_D0 on the area S
+    "hull_oswald_efficiency",  # e
+    "crossflow_drag_coefficient",  # 2-D C_d of a hull section
+    "crossflow_height",  # T, m: the projected height of a section
+    "crossflow_length",  # L, m: the length the strips cover, centred on the reference point
+    "crossflow_strips",  # n
+    "crossflow_heave",  # 1: also in heave and pitch; 0: sway and yaw only (the reference)
+    "crossflow_reference_strips",  # 1: the reference's n + 1 full-weight strips; 0: n cell centres
+)
 
 
 @struct.dataclass

@@ -85,7 +85,7 @@ class HydroParams:
             raise UserError(f"{source}: missing hydrodynamic field(s) {missing}")
         arrays = {}
         coupling = np.zeros((6, 6))
-        sizes = {**_SIZES, "reference_point": 3, "damping_fade": 6, "added_mass_munk_terms": 1}
+        sizes = {**_SIZES, **{k: v.size for k, v in _OPTIONAL.items()}}
         for name, size in sizes.items():
             arr = np.asarray(values[name], dtype=np.float64).reshape(-1)
             if name == "added_mass" and arr.size == 36:
