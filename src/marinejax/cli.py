@@ -174,6 +174,12 @@ def _print_eval(console, result: dict[str, Any]) -> None:
         f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m) "
         f"{100 * result['success_rate']:.0f} %"
     )
+    # errors in degrees end in _deg; speeds are m/s, the others m
+    others = [f"{key[: -len('_mean_deg')].replace('_', ' ')} {value:.2f}°" if key.endswith("_mean_deg") else
+              f"{key[: -len('_mean')].replace('_', ' ')} {value:.4f} {'m/s' if 'speed' in key else 'm'}"
+              for key, value in result.items() if key.endswith(("_mean", "_mean_deg")) and not key.startswith("position_error")]
+    if others:
+        console.print(f"  mean over the window: {', '.join(others)}")
     if "checkpoint" in result:
         console.print(f"  checkpoint: {result['checkpoint']} ({result['checkpoint_kind']})")
     else:
@@ -300,7 +306,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory, checkpoint or classical controller: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")
-    ev.add_argument("--controller", choices=["pid", "lqr", "autopilot"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
+    ev.add_argument("--controller", choices=["pid", "lqr", "autopilot", "los"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
                     help="for a run directory: the checkpoint with the lowest evaluation error during training "
                          "(default) or the newest")

@@ -37,6 +37,10 @@ feedback driving the stern planes (the reference's gains: 5, 2, 0.3 per rad, 5 p
 a PD on the heading error and the yaw rate driving the rudder; speed by propeller feedforward (the shaft speed of the
 steady straight run, linear in speed: max_rpm at `top_speed`) plus a PI on the speed error. Angles
 as the reference's: a positive rudder turns to starboard, positive stern planes pitch the nose down.
+On a path-following task (`los`) the same loops take their pitch and heading commands from integral
+line-of-sight guidance (`_line_of_sight`, Fossen 2021 section 12.4) with its distance Δ tuned by `tune`,
+the path's curvature as a yaw-rate feedforward and an integral on the heading error (the rudder a
+steady turn needs).
 """
 
 from __future__ import annotations
@@ -279,6 +283,8 @@ class TorpedoAutopilotConfig:
     heading_derivative_time: float = 2.0  # s: rudder per rad/s of yaw rate = heading_gain × this
     top_speed: float = 2.554  # m/s at the propeller's max_rpm (the REMUS 100's)
     speed_gains: tuple[float, float] = (0.5, 0.1)  # propeller command per m/s, per m
+    lookahead: float = 10.0  # m, line-of-sight distance Δ (path following; tuned)
+    heading_integral_time: float = 10.0  # s (path following: the steady rudder of a turn)
 
     def __post_init__(self):
         check_fields("TorpedoAutopilotConfig", self, strict=True)
@@ -302,9 +308,9 @@ class _Torpedo:
 def _torpedo(env: MarineEnv) -> _Torpedo:
     groups = env.plant.sys.actuators
     kinds = [g.kind.name for g in groups]
-    if kinds != ["fin", "fin", "propeller"] or "depth_error" not in env.observation_fields():
-        raise UserError(f"the torpedo autopilot needs the autopilot task of a vehicle with a rudder, stern planes and a propeller "
-                        f"(in that order); {env.vehicle.name!r} has {kinds}")
+    if kinds != ["fin", "fin", "propeller"] or not {"depth_error", "tangent"} & set(env.observation_fields()):
+        raise UserError(f"the torpedo autopilot needs the autopilot or a path-following task of a vehicle with a rudder, stern "
+                        f"planes and a propeller (in that order); {env.vehicle.name!r} has {kinds} on {type(env).__name__}")
     lo, hi = state_ranges(groups)
     return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(hi[0]), stern_max=float(hi[1]),
                     rpm_range=(float(lo[2]), float(hi[2])))
@@ -313,27 +319,36 @@ def _torpedo(env: MarineEnv) -> _Torpedo:
 def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarray:
     c = config
     return np.array([c.depth_gain, 1.0 / c.depth_integral_time, c.max_pitch, *c.pitch_gains, c.heave_gain, c.heading_gain,
-                     c.heading_gain * c.heading_derivative_time, c.top_speed, *c.speed_gains])
+                     c.heading_gain * c.heading_derivative_time, c.top_speed, *c.speed_gains, c.lookahead,
+                     c.heading_gain / c.heading_integral_time])
 
 
 def _torpedo_law(t: _Torpedo, gains) -> Controller:
-    """The autopilot's law with gains `_torpedo_design` (NumPy or traced JAX); carry: the integrals of
-    the depth error (m s), of the pitch error (rad s) and of the speed error (m)."""
+    """The controller with gains `_torpedo_design` (NumPy or traced JAX) on the task `t` reads: the
+    autopilot's set-points, or line-of-sight guidance on a path-following task (`_line_of_sight`).
+    Carry: the integrals of the depth error (m s), of the pitch error (rad s), of the speed error (m)
+    and, in path following, of the heading error (rad s)."""
     g = jnp.asarray(gains, jnp.float32)
     kz, kiz, max_pitch, kp, kd, ki, kw, kpsi, kr, top, ks, kis = (g[i] for i in range(12))
     f = t.fields
 
     def act(carry, obs, info):
-        depth_error = obs[f["depth_error"]][0]  # set-point − depth (m, world z up): positive = rise
         up, omega, v = obs[f["up"]], obs[f["angular_velocity"]], obs[f["velocity"]]
         nose_up = jnp.arcsin(jnp.clip(up[0], -1.0, 1.0))
-        i_depth, i_pitch, i_speed = carry
-        pitch_cmd = jnp.clip(kz * (depth_error + kiz * i_depth), -max_pitch, max_pitch)
+        i_depth, i_pitch, i_speed, i_heading = carry
+        speed_sp = obs[f["set_point_speed"]][0]
+        if "tangent" in f:  # path following: the guidance gives the pitch, heading and yaw-rate commands
+            pitch_cmd, heading_error, rate_cmd = _line_of_sight(obs, f, g[12], speed_sp)
+            pitch_cmd, depth_error = jnp.clip(pitch_cmd, -max_pitch, max_pitch), jnp.zeros(())
+            rudder = -kpsi * heading_error + kr * (omega[2] - rate_cmd) - g[13] * i_heading  # positive: to starboard
+        else:
+            depth_error = obs[f["depth_error"]][0]  # set-point − depth (m, world z up): positive = rise
+            s, c = obs[f["heading"]]
+            heading_error = jnp.arctan2(s, c)
+            pitch_cmd = jnp.clip(kz * (depth_error + kiz * i_depth), -max_pitch, max_pitch)
+            rudder = -kpsi * heading_error + kr * omega[2]  # positive: to starboard
         # stern planes (positive: nose down), the reference's law in FLU: nose-up rate −ω_y, heave −w
         stern = kp * (nose_up - pitch_cmd) - kd * omega[1] + ki * i_pitch - kw * v[2]
-        s, c = obs[f["heading"]]
-        rudder = -kpsi * jnp.arctan2(s, c) + kr * omega[2]  # positive: to starboard
-        speed_sp = obs[f["set_point_speed"]][0]
         speed_error = obs[f["speed_error"]][0]
         lo, hi = t.rpm_range
         rpm = hi * speed_sp / top + (hi - lo) * (ks * speed_error + kis * i_speed)
@@ -341,10 +356,34 @@ def _torpedo_law(t: _Torpedo, gains) -> Controller:
         # integrate only while unsaturated (anti-windup)
         carry = (i_depth + t.dt * depth_error * (jnp.abs(pitch_cmd) < max_pitch),
                  i_pitch + t.dt * (nose_up - pitch_cmd) * (jnp.abs(stern) < t.stern_max),
-                 i_speed + t.dt * speed_error * (jnp.abs(action[2]) < 1.0))
+                 i_speed + t.dt * speed_error * (jnp.abs(action[2]) < 1.0),
+                 i_heading + t.dt * heading_error * (jnp.abs(rudder) < t.rudder_max))
         return jnp.clip(action, -1.0, 1.0), carry
 
-    return Controller(init=lambda key: (jnp.zeros(()), jnp.zeros(()), jnp.zeros(())), act=act)
+    return Controller(init=lambda key: (jnp.zeros(()),) * 4, act=act)
+
+
+def _line_of_sight(obs, f, lookahead, speed):
+    """Line-of-sight guidance (Fossen 2021, section 12.4) in the horizontal and the vertical plane,
+    from the path-following observation (body frame): the course to steer is the path's course plus
+    atan(e_y/Δ), the climb angle the path's plus atan(e_z/Δ), e_y and e_z the path's offset to the
+    left of and above the vehicle (m); the vehicle's course and climb are its heading and pitch plus
+    the angles of its velocity in the body frame (sideslip, angle of attack), so a turn's sideslip
+    leaves no offset. The yaw rate to turn at is the path's curvature (from the chord to the first
+    previewed point: exact on a circle) times `speed`. Returns the pitch command (rad, nose up), the
+    heading error (rad, positive: turn left) and the yaw rate (rad/s, left)."""
+    up, closest, tangent, v = obs[f["up"]], obs[f["position_error"]], obs[f["tangent"]], obs[f["velocity"]]
+    level = lambda a: a - jnp.dot(a, up) * up  # noqa: E731  (the horizontal part of a body-frame vector)
+    left_of = lambda a, b: jnp.arctan2(jnp.dot(up, jnp.cross(a, b)), jnp.dot(a, b))  # noqa: E731  (angle from a to b about up)
+    x_h, t_h = level(jnp.array([1.0, 0.0, 0.0])), level(tangent)
+    chord = level(obs[f["path_ahead"]][:3] - closest)
+    curvature = 2 * jnp.sin(left_of(t_h, chord)) / jnp.maximum(jnp.linalg.norm(chord), 1e-6)
+    left = jnp.cross(up, t_h / jnp.maximum(jnp.linalg.norm(t_h), 1e-6))
+    e_y, e_z = jnp.dot(closest, left), jnp.dot(closest, up)
+    climb = jnp.arcsin(jnp.clip(jnp.dot(tangent, up), -1.0, 1.0))
+    sideslip, attack = jnp.arctan2(v[1], v[0]), jnp.arctan2(v[2], v[0])  # velocity's angles left of and above body x
+    return (climb + jnp.arctan(e_z / lookahead) - attack, left_of(x_h, t_h) + jnp.arctan(e_y / lookahead) - sideslip,
+            speed * curvature)
 
 
 def torpedo_autopilot(env: MarineEnv, config: TorpedoAutopilotConfig = TorpedoAutopilotConfig()) -> Controller:
@@ -361,6 +400,10 @@ TUNING_GRIDS = {
     "lqr": ("position scale (m)", (0.2, 0.1, 0.05, 0.02, 0.01), lambda s: LQRConfig(position_scale=s), lqr_gain, _lqr_law, _hover),
     "autopilot": ("depth gain (pitch rad per m)", (0.05, 0.1, 0.2, 0.4, 0.8),
                   lambda k: TorpedoAutopilotConfig(depth_gain=k), _torpedo_design, _torpedo_law, _torpedo),
+    # path following turns all the time: a tighter heading loop than the reference's (5 per rad, 1 s)
+    "los": ("line-of-sight distance (m)", (2.5, 5.0, 10.0, 20.0),
+            lambda d: TorpedoAutopilotConfig(heading_gain=5.0, heading_derivative_time=1.0, lookahead=d),
+            _torpedo_design, _torpedo_law, _torpedo),
 }
 TUNING_SEED = 1  # episodes for tuning; `marinejax eval` evaluates on another seed (12345)
 CONTROLLERS = tuple(TUNING_GRIDS)
@@ -385,16 +428,16 @@ def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED,
         controller = law(h, gains)
         state = env.reset(key)
         _, _, recorded = run_steps(env, controller, state, controller.init(key), steps,
-                                   lambda s: (s.metrics["position_error"], s.done, s.metrics["heading_error_deg"]))
+                                   lambda s: (s.metrics["position_error"], s.done, {k: s.metrics[k] for k in env.error_names}))
         return recorded
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    err, done, heading = jax.jit(jax.vmap(jax.vmap(episode, (0, None)), (None, 0)))(keys, stacked)
+    err, done, others = jax.jit(jax.vmap(jax.vmap(episode, (0, None)), (None, 0)))(keys, stacked)
     time = env.config.control_dt * np.arange(1, steps + 1)
     errors = {}
     for i, value in enumerate(grid):
         stats = summarize(env, {"time": time, "error": np.asarray(err[i], float), "done": np.asarray(done[i], float),
-                                "heading_error_deg": np.asarray(heading[i], float)})
+                                **{k: np.asarray(o[i], float) for k, o in others.items()}})
         errors[value] = stats["position_error_mean_m"]
         if progress is not None:
             progress(f"{name.upper()} tuning: {label} {value:g}: mean error {errors[value]:.4f} m")

@@ -28,10 +28,12 @@ def test_every_vehicle_file_gets_every_task_and_its_disturbed_variant():
 
 
 def test_tasks_go_to_the_vehicles_of_their_kind():
-    """The torpedo REMUS 100 cannot hover: it gets the autopilot and none of the ROV tasks, and asking
-    for one says why; the ROVs get no autopilot."""
-    assert [n for n in marinejax.list_envs() if n.startswith("Remus100-")] == ["Remus100-Autopilot", "Remus100-AutopilotDisturbed"]
-    assert not [n for n in marinejax.list_envs() if "Autopilot" in n and not n.startswith("Remus100-")]
+    """The torpedo REMUS 100 cannot hover: it gets the autopilot and path following and none of the ROV
+    tasks, and asking for one says why; the ROVs get neither."""
+    torpedo_tasks = ["Autopilot", "WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing"]
+    assert [n for n in marinejax.list_envs() if n.startswith("Remus100-")] == [
+        f"Remus100-{t}{variant}" for t in torpedo_tasks for variant in ("", "Disturbed")]
+    assert not [n for n in marinejax.list_envs() if ("Autopilot" in n or "Following" in n) and not n.startswith("Remus100-")]
     with pytest.raises(UserError, match="unknown env 'Remus100-StationKeeping'"):
         marinejax.make("Remus100-StationKeeping")
     with pytest.raises(UserError, match="for vehicles of kind \\['rov'\\]; 'remus100' is a 'torpedo'"):

@@ -1,4 +1,5 @@
-"""Registered RL tasks: station keeping and circle, helix and lemniscate tracking for ROVs, the autopilot for torpedo AUVs.
+"""Registered RL tasks: station keeping and circle, helix and lemniscate tracking for ROVs; the
+autopilot and waypoint, circle, helix and lemniscate path following for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
@@ -19,6 +20,7 @@ from marinejax.envs.registry import (
     register_with_brax,
 )
 from marinejax.envs.autopilot import Autopilot, AutopilotConfig
+from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.envs.tracking import TrackingConfig, Tracking
 from marinejax.envs.trajectories import TrajectoryConfig
@@ -26,6 +28,10 @@ from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
 register_task("Autopilot", Autopilot)  # torpedo AUVs
+register_task("WaypointFollowing", PathFollowing, kind="lines")
+register_task("CircleFollowing", PathFollowing, kind="circle")
+register_task("HelixFollowing", PathFollowing, kind="helix")
+register_task("LemniscateFollowing", PathFollowing, kind="lemniscate")
 register_task("CircleTracking", Tracking, kind="circle")
 register_task("HelixTracking", Tracking, kind="helix")
 register_task("LemniscateTracking", Tracking, kind="lemniscate")
@@ -43,6 +49,8 @@ __all__ = [
     "DisturbanceConfig",
     "EnvConfig",
     "MarineEnv",
+    "PathFollowing",
+    "PathFollowingConfig",
     "RandomizationConfig",
     "ResetConfig",
     "RewardConfig",

@@ -33,11 +33,11 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.actuators import state_ranges
 from marinejax.config import check_range
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, heading_error
+from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
+from marinejax.envs.cruising import CruisingEnv
 from marinejax.errors import UserError
-from marinejax.frames import quat_from_euler, quat_to_mat
+from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
 
@@ -86,22 +86,9 @@ class SetPoints:
     yaw: jnp.ndarray  # () rad: the first heading (the base's `task.yaw`)
 
 
-class Autopilot(MarineEnv):
+class Autopilot(CruisingEnv):
     config_class = AutopilotConfig
-    vehicle_kinds = ("torpedo",)
     error_window_description = "last `settled` s of each set-point segment"
-
-    def __init__(self, vehicle, config: AutopilotConfig):
-        super().__init__(vehicle, config)
-        groups = self.plant.sys.actuators
-        # actuator states scaled by their command range, for the observation (looked up once)
-        lo, hi = state_ranges(groups)
-        self._act_lo, self._act_hi = jnp.asarray(np.float32(lo)), jnp.asarray(np.float32(hi))
-        self._act_mid, self._act_half = jnp.asarray(np.float32((lo + hi) / 2)), jnp.asarray(np.float32((hi - lo) / 2))
-        kinds = np.concatenate([[g.kind.name] * g.size for g in groups])
-        self._propeller = jnp.asarray(kinds == "propeller")
-        if not np.any(kinds == "propeller"):
-            raise UserError(f"the autopilot task needs a propeller; {self.vehicle.name!r} has actuator kinds {sorted(set(kinds))}")
 
     def error_window(self, time):
         """The last `settled` s of each segment (time: s since the episode started, end of a step)."""
@@ -150,11 +137,7 @@ class Autopilot(MarineEnv):
         depth = task.depth[0] + jax.random.uniform(k[0], minval=-c.start_depth_error, maxval=c.start_depth_error)
         yaw = task.heading[0] + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
         speed = jax.random.uniform(k[2], minval=c.speed_range[0], maxval=c.speed_range[1])
-        # the propeller at about the shaft speed of that forward speed (linear in speed), fins at 0
-        shaft = self._act_lo + jnp.clip(speed / c.top_speed, 0.0, 1.0) * (self._act_hi - self._act_lo)
-        actuators = jnp.where(self._propeller, shaft, 0.0)
-        return VehicleState(position=jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), quaternion=quat_from_euler(0.0, 0.0, yaw),
-                            velocity=jnp.array([1.0, 0.0, 0.0]) * speed, angular_velocity=jnp.zeros(3), actuators=actuators)
+        return self.cruising_state(jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), (0.0, 0.0, yaw), speed)
 
     def task_observation_fields(self) -> dict[str, slice]:
         n = self.action_size
@@ -172,7 +155,7 @@ class Autopilot(MarineEnv):
             jnp.clip(depth - vs.position[2], -c.depth_clip, c.depth_clip)[None],
             jnp.stack([jnp.sin(dpsi), jnp.cos(dpsi)]), (speed - vs.velocity[0])[None], up_body, vs.velocity,
             vs.angular_velocity, (depth / 10.0)[None], jnp.stack([jnp.sin(heading), jnp.cos(heading)]), speed[None],
-            (vs.actuators - self._act_mid) / self._act_half, action,
+            self.scaled_actuators(vs), action,
         ])
 
     def reward_terms(self, vs: VehicleState, info, action):
@@ -185,5 +168,6 @@ class Autopilot(MarineEnv):
             "position": 1.0 / (1.0 + (e / r.position_scale) ** 2),
             "precision": jnp.exp(-jnp.abs(e) / r.precision_scale),
             "speed": jnp.exp(-jnp.abs(speed - vs.velocity[0]) / r.speed_scale),
+            "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, heading)) / r.heading_precision_scale),
             **terms,
         }

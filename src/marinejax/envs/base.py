@@ -77,7 +77,8 @@ class RewardConfig:
     precision: exp(−d / precision_scale), sharp near zero error (weights tuned on station keeping); upright: ((up_z + 1)/2)^2;
     heading: (1 + cos(heading error))/2; effort: −mean(action^2); smoothness: −mean(Δaction^2);
     angular_velocity: −|ω|^2 (rad^2/s^2); speed (tasks with a speed set-point): exp(−|speed error| /
-    speed_scale).
+    speed_scale); heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale),
+    sharp where the heading term is flat.
     """
 
     position: float = 2.0
@@ -91,6 +92,8 @@ class RewardConfig:
     angular_velocity: float = 0.02
     speed: float = 0.0
     speed_scale: float = 0.2  # m/s
+    heading_precision: float = 0.0
+    heading_precision_scale: float = 0.05  # rad
 
 
 OBSERVATION_MODES = ("state", "sensors")
@@ -251,6 +254,7 @@ class MarineEnv(Env):
         ps, finite = self.plant.step(info["params"], pipeline_state, applied, k_plant)
         info.update(rng=rng, time=info["time"] + cfg.control_dt)
         vs = self.plant.vehicle_state(ps)
+        info["task"] = self.advance_task(info["task"], vs)
         if self._sensor_mode:
             suite = self.plant.sensors
             info["sensors"], m = suite.step(info["sensors"], vs, k_sensors)
@@ -281,6 +285,13 @@ class MarineEnv(Env):
             "heading_error_deg": jnp.degrees(jnp.abs(heading_error(vs.quaternion, info["task"].yaw))),
             "position_error": jnp.linalg.norm(self.target_position(info) - vs.position),
         }
+
+    @functools.cached_property
+    def error_names(self) -> tuple[str, ...]:
+        """The names of the task's errors (`errors`), as logged in the metrics: position_error,
+        heading_error_deg and any of the task's own."""
+        shape = self._state_shape
+        return tuple(jax.eval_shape(lambda ps, info: self.errors(self.plant.vehicle_state(ps), info), shape.pipeline_state, shape.info))
 
     @functools.cached_property
     def _sensor_mode(self) -> bool:
@@ -407,6 +418,12 @@ class MarineEnv(Env):
 
     def _initial_pose(self, rng: jax.Array, task: Any) -> VehicleState:
         raise NotImplementedError
+
+    def advance_task(self, task: Any, vs: VehicleState) -> Any:
+        """The task after a step that ended in exact state `vs` (before the errors, observation and
+        reward are computed): for a task with a state of its own, such as the closest point on a
+        path. Most tasks' targets are fixed per episode: unchanged."""
+        return task
 
     def observe(self, vs: VehicleState, info: dict, action: jnp.ndarray) -> jnp.ndarray:
         """The task's observation (before the integral) at state `vs`, time info['time'], after `action`."""

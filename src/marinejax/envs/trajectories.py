@@ -145,7 +145,12 @@ def _arc_length(params: TrajectoryParams, t: jnp.ndarray) -> jnp.ndarray:
 
 
 def _position(kind: str, params: TrajectoryParams, t: jnp.ndarray) -> jnp.ndarray:
-    s = _arc_length(params, t)
+    return point_at(kind, params, _arc_length(params, t))
+
+
+def point_at(kind: str, params: TrajectoryParams, s: jnp.ndarray) -> jnp.ndarray:
+    """The point (..., 3) m, world frame, at arc length s (m) from the path's start point (any s:
+    closed figures repeat, the helix continues); `speed` and `ramp_time` play no part."""
     r = params.size
     zero = jnp.zeros_like(s)
     if kind == "circle":

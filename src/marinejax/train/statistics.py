@@ -25,39 +25,49 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     """Run `episodes` full episodes (episode_length steps, no early reset) in one jitted call.
 
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
-    error (E, T), done (E, T), heading_error_deg (E, T).
+    error (E, T), done (E, T), and (E, T) each of the task's other errors (`MarineEnv.error_names`:
+    heading_error_deg, and e.g. speed_error).
     """
     steps = env.config.episode_length
+    others = [name for name in env.error_names if name != "position_error"]
 
     def record(s):
         vs = env.plant.vehicle_state(s.pipeline_state)
         return (vs.position, vs.quaternion, env.target_position(s.info), s.metrics["position_error"], s.done,
-                s.metrics["heading_error_deg"])
+                {name: s.metrics[name] for name in others})
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    _, (pos, quat, target, err, done, head) = rollout(env, controller, keys, steps, record)
+    _, (pos, quat, target, err, done, errors) = rollout(env, controller, keys, steps, record)
     to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
     return {
         "time": env.config.control_dt * np.arange(1, steps + 1),
         "position": to_np(pos), "target": to_np(target), "error": to_np(err),
-        "quaternion": to_np(quat), "done": to_np(done), "heading_error_deg": to_np(head),
+        "quaternion": to_np(quat), "done": to_np(done), **{name: to_np(e) for name, e in errors.items()},
     }
 
 
 def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
-    """Statistics over episodes of the task's window error; success below the task's threshold."""
+    """Statistics over episodes of the task's window error; success below the task's threshold; the
+    mean over the window of each other error (`<name>_mean`, e.g. heading_error_mean_deg)."""
     success_m = env.success_threshold_m
     mask = np.asarray(env.error_window(result["time"]))
     per_episode = result["error"][:, mask].mean(axis=1)
     ended = result["done"].max(axis=1) > 0
+    others = {_mean_name(name): float(result[name][:, mask].mean()) for name in env.error_names if name != "position_error"}
     return {
         "episodes": int(per_episode.size),
         "window": env.error_window_description,
         "position_error_mean_m": float(per_episode.mean()),
         "position_error_median_m": float(np.median(per_episode)),
         "position_error_p95_m": float(np.percentile(per_episode, 95)),
-        "heading_error_mean_deg": float(result["heading_error_deg"][:, mask].mean()),
+        **others,
         "success_rate": float(np.mean((per_episode < success_m) & ~ended)),
         "success_threshold_m": success_m,
         "terminated_episodes": int(ended.sum()),
     }
+
+
+def _mean_name(error: str) -> str:
+    """heading_error_deg → heading_error_mean_deg; speed_error → speed_error_mean."""
+    base, unit = (error[: -len("_deg")], "_deg") if error.endswith("_deg") else (error, "")
+    return f"{base}_mean{unit}"

@@ -1,0 +1,48 @@
+"""What the tasks of vehicles that cannot hover (torpedo AUVs) share: a start under way, with the
+propeller already turning, and the actuator states in the observation.
+
+Such a vehicle steers with fins that only work while it moves, so every episode starts at speed;
+its actuators' states (fin angles, shaft speed) lag their commands by up to a second and are part
+of what the policy must see.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from marinejax.actuators import state_ranges
+from marinejax.envs.base import MarineEnv
+from marinejax.errors import UserError
+from marinejax.frames import quat_from_euler
+from marinejax.physics import VehicleState
+
+
+class CruisingEnv(MarineEnv):
+    """Base of the torpedo tasks; subclasses set a config with `top_speed` (m/s at full propeller command)."""
+
+    vehicle_kinds = ("torpedo",)
+
+    def __init__(self, vehicle, config):
+        super().__init__(vehicle, config)
+        groups = self.plant.sys.actuators
+        # actuator states scaled by their command range, for the observation (looked up once)
+        lo, hi = state_ranges(groups)
+        self._act_lo, self._act_hi = jnp.asarray(np.float32(lo)), jnp.asarray(np.float32(hi))
+        self._act_mid, self._act_half = jnp.asarray(np.float32((lo + hi) / 2)), jnp.asarray(np.float32((hi - lo) / 2))
+        kinds = np.concatenate([[g.kind.name] * g.size for g in groups])
+        self._propeller = jnp.asarray(kinds == "propeller")
+        if not np.any(kinds == "propeller"):
+            raise UserError(f"the {type(self).__name__} task needs a propeller; {self.vehicle.name!r} has actuator kinds {sorted(set(kinds))}")
+
+    def scaled_actuators(self, vs: VehicleState) -> jnp.ndarray:
+        """The actuator states, each scaled to [−1, 1] by its command range."""
+        return (vs.actuators - self._act_mid) / self._act_half
+
+    def cruising_state(self, position, roll_pitch_yaw, speed) -> VehicleState:
+        """At `position` (m, world), attitude (rad), moving forward at `speed` (m/s): the propeller at
+        about that speed's shaft speed (linear in speed up to `config.top_speed`), fins at 0."""
+        shaft = self._act_lo + jnp.clip(speed / self.config.top_speed, 0.0, 1.0) * (self._act_hi - self._act_lo)
+        return VehicleState(position=position, quaternion=quat_from_euler(*roll_pitch_yaw),
+                            velocity=jnp.array([1.0, 0.0, 0.0]) * speed, angular_velocity=jnp.zeros(3),
+                            actuators=jnp.where(self._propeller, shaft, 0.0))

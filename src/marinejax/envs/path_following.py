@@ -1,0 +1,162 @@
+"""Path following, for vehicles that cannot hover (torpedo AUVs): stay on a path drawn per episode
+(waypoint legs, circle, helix or lemniscate: `paths`) while moving along it at a commanded speed.
+
+Unlike tracking, nothing moves along the path by itself: the task's state is the arc length s of
+the vehicle's closest point on the path, updated after every step by projection (`paths.project`,
+from the previous one, so it never jumps to another part of the path). The vehicle starts near the
+path's start point, up to `start_offset` m off it sideways and half that vertically, on the path's
+heading within ±`start_heading_error` rad, moving forward at the commanded speed.
+
+Observation (body frame FLU unless stated), size 3·m + 16 + 2 × number of actions,
+m = `num_preview_points`:
+  [0:3]          closest point of the path minus position, m (the cross-track error vector)
+  [3:3+3m]       points of the path `preview_spacing`, 2·`preview_spacing`, … m beyond it, minus position, m
+  [3m+3:3m+6]    unit tangent of the path at the closest point
+  [3m+6]         commanded speed, m/s
+  [3m+7]         commanded speed minus the speed along the path (ds/dt over the last step), m/s
+  [3m+8:3m+11]   world up (0, 0, 1) in the body frame
+  [3m+11:3m+14]  linear velocity, m/s
+  [3m+14:3m+17]  angular velocity, rad/s
+  then the actuator states, each scaled to [−1, 1] by its command range, and the last action.
+Errors: `position_error` is the cross-track distance (m, 3-D, to the closest point),
+`speed_error` |commanded − along-track speed| (m/s), `heading_error_deg` the angle between the
+vehicle's heading and the path's, in plan view. The evaluation window starts after `settle_time` s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from marinejax.envs import paths
+from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
+from marinejax.envs.cruising import CruisingEnv
+from marinejax.errors import UserError
+from marinejax.frames import quat_to_mat
+from marinejax.physics import VehicleState
+
+
+@dataclasses.dataclass(frozen=True)
+class PathFollowingConfig(EnvConfig):
+    control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
+    substeps: int = 2  # two 50 ms physics steps per action
+    episode_length: int = 600  # 60 s
+    settle_time: float = 10.0  # s: the evaluation window starts after this
+    max_distance: float = 10.0  # m off the path: the episode terminates beyond
+    start_offset: float = 2.0  # m, sideways (vertically: half)
+    start_heading_error: float = 0.3  # rad
+    num_preview_points: int = 4
+    preview_spacing: float = 5.0  # m along the path between observed points
+    top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed
+    integral_time_constant: float = 0.0  # the base's position integral does not apply
+    path: paths.PathConfig = paths.PathConfig()
+    # position: 1/(1 + (d/position_scale)^2) and precision: exp(−d/precision_scale) of the cross-track
+    # distance d; heading: to the path's heading; speed: along the path. No upright term: a torpedo
+    # pitches to change depth.
+    reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.integral_time_constant != 0:
+            raise UserError("config 'integral_time_constant' must be 0 for path following (it observes the path instead)")
+        for name in ("settle_time", "start_offset", "start_heading_error", "preview_spacing", "top_speed"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
+        if self.num_preview_points < 1:
+            raise UserError(f"config 'num_preview_points' must be >= 1, got {self.num_preview_points}")
+
+
+@struct.dataclass
+class PathTask:
+    path: object  # the episode's path (`paths.sample`)
+    speed: jnp.ndarray  # () m/s, commanded
+    s: jnp.ndarray  # () m, arc length of the closest point
+    along_speed: jnp.ndarray  # () m/s, ds/dt over the last step
+    yaw: jnp.ndarray  # () rad, the path's heading at the closest point (the base's `task.yaw`)
+
+
+def _course(tangent: jnp.ndarray) -> jnp.ndarray:
+    return jnp.arctan2(tangent[1], tangent[0])
+
+
+class PathFollowing(CruisingEnv):
+    config_class = PathFollowingConfig
+    error_window_description = "after the first `settle_time` s"
+
+    def __init__(self, vehicle, config: PathFollowingConfig, kind: str):
+        paths.check_kind(kind)
+        self.kind = kind
+        super().__init__(vehicle, config)
+
+    def error_window(self, time):
+        return time > self.config.settle_time + 0.5 * self.config.control_dt  # half a step of margin for float32 time
+
+    def _sample_task(self, rng):
+        k1, k2 = jax.random.split(rng)
+        path = paths.sample(self.kind, k1, self.config.path)
+        speed = jax.random.uniform(k2, minval=self.config.path.speed[0], maxval=self.config.path.speed[1])
+        s = jnp.zeros(())
+        return PathTask(path=path, speed=speed, s=s, along_speed=speed, yaw=_course(paths.point(self.kind, path, s)[1]))
+
+    def advance_task(self, task: PathTask, vs: VehicleState) -> PathTask:
+        s = paths.project(self.kind, task.path, task.s, vs.position)
+        _, tangent = paths.point(self.kind, task.path, s)
+        return task.replace(s=s, along_speed=(s - task.s) / self.config.control_dt, yaw=_course(tangent))
+
+    def target_position(self, info) -> jnp.ndarray:
+        """The closest point of the path (m, world)."""
+        task: PathTask = info["task"]
+        return paths.point(self.kind, task.path, task.s)[0]
+
+    def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
+        task: PathTask = info["task"]
+        return {
+            "heading_error_deg": jnp.degrees(jnp.abs(heading_error(vs.quaternion, task.yaw))),
+            "position_error": jnp.linalg.norm(self.target_position(info) - vs.position),
+            "speed_error": jnp.abs(task.speed - task.along_speed),
+        }
+
+    def _initial_pose(self, rng, task: PathTask) -> VehicleState:
+        c = self.config
+        k = jax.random.split(rng, 3)
+        start, tangent = paths.point(self.kind, task.path, task.s)
+        side = jnp.array([-jnp.sin(task.yaw), jnp.cos(task.yaw), 0.0])  # horizontal, to the left of the path
+        offset = jax.random.uniform(k[0], (2,), minval=-c.start_offset, maxval=c.start_offset) * jnp.array([1.0, 0.5])
+        yaw = task.yaw + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
+        pitch = -jnp.arcsin(jnp.clip(tangent[2], -1.0, 1.0))  # nose up is negative pitch (FLU, z up)
+        return self.cruising_state(start + offset[0] * side + jnp.array([0.0, 0.0, 1.0]) * offset[1], (0.0, pitch, yaw), task.speed)
+
+    def task_observation_fields(self) -> dict[str, slice]:
+        k, n = 3 + 3 * self.config.num_preview_points, self.action_size
+        return {"position_error": slice(0, 3), "path_ahead": slice(3, k), "tangent": slice(k, k + 3),
+                "set_point_speed": slice(k + 3, k + 4), "speed_error": slice(k + 4, k + 5), "up": slice(k + 5, k + 8),
+                "velocity": slice(k + 8, k + 11), "angular_velocity": slice(k + 11, k + 14),
+                "actuators": slice(k + 14, k + 14 + n), "last_action": slice(k + 14 + n, k + 14 + 2 * n)}
+
+    def observe(self, vs: VehicleState, info, action):
+        task: PathTask = info["task"]
+        c = self.config
+        ahead_s = task.s + c.preview_spacing * jnp.arange(c.num_preview_points + 1)
+        points, tangents = jax.vmap(lambda s: paths.point(self.kind, task.path, s))(ahead_s)
+        rot = quat_to_mat(vs.quaternion)
+        return jnp.concatenate([
+            ((points - vs.position) @ rot).reshape(-1), rot.T @ tangents[0], task.speed[None], (task.speed - task.along_speed)[None],
+            rot[2, :], vs.velocity, vs.angular_velocity, self.scaled_actuators(vs), action,
+        ])
+
+    def reward_terms(self, vs: VehicleState, info, action):
+        task: PathTask = info["task"]
+        d = jnp.linalg.norm(self.target_position(info) - vs.position)
+        r = self.config.reward
+        terms = self._attitude_terms(vs, task.yaw, action, info["last_action"])
+        del terms["upright"]
+        return {
+            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
+            "precision": jnp.exp(-d / r.precision_scale),
+            "speed": jnp.exp(-jnp.abs(task.speed - task.along_speed) / r.speed_scale),
+            **terms,
+        }
