@@ -82,3 +82,39 @@ def test_it_is_a_torpedo_task_and_bad_settings_are_refused():
         mj.make("Remus100-Autopilot", integral_time_constant=2.0)
     with pytest.raises(UserError, match="settled"):
         mj.make("Remus100-Autopilot", settled=70.0)
+
+
+def test_the_disturbed_variant_draws_the_fins_and_propeller_and_currents_up_to_half_a_metre_per_second():
+    env = mj.make("Remus100-AutopilotDisturbed")
+    c = env.config.randomization
+    assert env.config.current.speed == (0.0, 0.5) and env.config.current.mode == "ou"
+    params = jax.vmap(env.plant.sample_params)(jax.random.split(jax.random.PRNGKey(0), 64))
+    rudder, stern, propeller = params.actuators
+    for fins in (rudder, stern):
+        lift = np.asarray(fins.lift_scale)
+        assert lift.shape == (64, 1) and np.all((lift >= c.fin_lift_scale[0]) & (lift <= c.fin_lift_scale[1])) and lift.std() > 0.05
+        tau = np.asarray(fins.time_constant)
+        assert np.all((tau >= c.fin_time_constant[0]) & (tau <= c.fin_time_constant[1]))
+    scale = np.asarray(propeller.thrust_scale)
+    assert np.all((scale >= c.propeller_thrust_scale[0]) & (scale <= c.propeller_thrust_scale[1])) and scale.std() > 0.02
+    assert np.all((np.asarray(propeller.time_constant) >= c.propeller_time_constant[0]) & (np.asarray(propeller.time_constant) <= c.propeller_time_constant[1]))
+    # nominal: the file's values, the scales 1
+    nominal = mj.make("Remus100-Autopilot").plant.sample_params(jax.random.PRNGKey(0))
+    assert float(nominal.actuators[0].lift_scale[0]) == 1.0 and float(nominal.actuators[2].thrust_scale) == 1.0
+    assert float(nominal.actuators[2].time_constant) == pytest.approx(1.0)
+
+
+def test_a_weaker_rudder_turns_the_vehicle_more_slowly():
+    """The fin's lift scale enters its force: half the lift, about half the turn rate at the start of a turn."""
+    env = mj.make("Remus100-Autopilot", current={"mode": "off"})
+    nominal = env.plant.sample_params(jax.random.PRNGKey(0))
+    weak = nominal.replace(actuators=(nominal.actuators[0].replace(lift_scale=nominal.actuators[0].lift_scale * 0.5),) + nominal.actuators[1:])
+
+    def yaw_rate(params):
+        s = env.reset(jax.random.PRNGKey(3), params)
+        for _ in range(10):
+            s = env.step(s, jnp.array([1.0, 0.0, 0.5]))
+        return float(env.plant.vehicle_state(s.pipeline_state).angular_velocity[2])
+
+    strong, half = yaw_rate(nominal), yaw_rate(weak)
+    assert strong < -0.02 and 0.35 < half / strong < 0.65  # positive rudder turns to starboard (negative yaw rate)

@@ -48,6 +48,7 @@ class FinDesign:
 class FinParams:
     max_angle: jnp.ndarray  # () rad, deflection at command ±1
     time_constant: jnp.ndarray  # () s
+    lift_scale: jnp.ndarray  # (N,) times the nominal lift and drag (1; randomized per episode)
 
 
 class Fin(ActuatorKind):
@@ -64,7 +65,8 @@ class Fin(ActuatorKind):
         f32 = lambda a: jnp.asarray(np.float32(a))  # noqa: E731  (host casts: no compiled conversion)
         design = FinDesign(position=f32(positions), normal=f32(rotations[:, :, 2]), flow_point=f32(flow_points(settings, positions, where)),
                            lift=f32(0.5 * v["fluid_density"] * v["area"] * v["lift_slope"]), drag_factor=f32(v["drag_factor"]))
-        return design, FinParams(max_angle=f32(v["max_angle"]), time_constant=f32(v["time_constant"]))
+        return design, FinParams(max_angle=f32(v["max_angle"]), time_constant=f32(v["time_constant"]),
+                                 lift_scale=f32(np.ones(len(sites))))
 
     def target(self, design, params, command):
         return jnp.clip(command, -1.0, 1.0) * params.max_angle
@@ -72,7 +74,7 @@ class Fin(ActuatorKind):
     def wrench(self, design, params, state, nu_r):
         v_flow = nu_r[:3] + jnp.cross(nu_r[3:], design.flow_point)  # (N, 3)
         speed_sq = v_flow[:, 0] ** 2 + jnp.sum(v_flow * design.normal, axis=-1) ** 2
-        q = design.lift * speed_sq  # (N,)
+        q = design.lift * params.lift_scale * speed_sq  # (N,)
         force = (q * state)[:, None] * design.normal
         force = force.at[:, 0].add(-q * state**2 * design.drag_factor)
         return body_wrench(design.position, force)
@@ -86,5 +88,9 @@ class Fin(ActuatorKind):
         return (f"fin deflection in [-1, 1] of ±{angle:.4g} rad (±{np.degrees(angle):.3g}°; first-order lag; positive "
                 f"lifts along the site's +z), order {list(names)}")
 
+    def randomize(self, params, draw, config):
+        return params.replace(lift_scale=draw(config.fin_lift_scale, params.lift_scale.shape),
+                              time_constant=draw(config.fin_time_constant, ()))
+
     def privileged(self, params):
-        return jnp.stack([params.max_angle, params.time_constant])
+        return jnp.concatenate([jnp.stack([params.max_angle, params.time_constant]), params.lift_scale])

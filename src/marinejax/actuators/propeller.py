@@ -57,6 +57,7 @@ class PropellerParams:
     min_rpm: jnp.ndarray  # () rev/min at command −1
     max_rpm: jnp.ndarray  # () rev/min at command +1
     time_constant: jnp.ndarray  # () s
+    thrust_scale: jnp.ndarray  # () times the nominal thrust (1; randomized per episode)
 
 
 class Propeller(ActuatorKind):
@@ -77,7 +78,8 @@ class Propeller(ActuatorKind):
             rho_d4=f32(rho * d**4), rho_d5=f32(rho * d**5), diameter=f32(d), kt0=f32(v["kt0"]), kq0=f32(v["kq0"]),
             kt_slope=f32((v["kt_max"] - v["kt0"]) / v["j_max"]), kq_slope=f32((v["kq_max"] - v["kq0"]) / v["j_max"]),
             wake_fraction=f32(v["wake_fraction"]), thrust_deduction=f32(v["thrust_deduction"]), torque_scale=f32(v["torque_scale"]))
-        params = PropellerParams(min_rpm=f32(v["min_rpm"]), max_rpm=f32(v["max_rpm"]), time_constant=f32(v["time_constant"]))
+        params = PropellerParams(min_rpm=f32(v["min_rpm"]), max_rpm=f32(v["max_rpm"]), time_constant=f32(v["time_constant"]),
+                                thrust_scale=f32(1.0))
         return design, params
 
     def target(self, design, params, command):
@@ -98,7 +100,7 @@ class Propeller(ActuatorKind):
 
     def wrench(self, design, params, state, nu_r):
         thrust, torque = self.thrust_torque(design, state, nu_r)
-        force = ((1.0 - design.thrust_deduction) * thrust)[:, None] * design.axis
+        force = ((1.0 - design.thrust_deduction) * thrust * params.thrust_scale)[:, None] * design.axis
         return body_wrench(design.position, force, (design.torque_scale * torque)[:, None] * design.axis)
 
     def state_range(self, design, params):
@@ -109,5 +111,9 @@ class Propeller(ActuatorKind):
         return (f"propeller speed in [-1, 1]: -1 = {float(params.min_rpm):.6g} rev/min, +1 = {float(params.max_rpm):.6g} "
                 f"rev/min (first-order lag; positive speed pushes along the site's +z), order {list(names)}")
 
+    def randomize(self, params, draw, config):
+        return params.replace(thrust_scale=draw(config.propeller_thrust_scale, ()),
+                              time_constant=draw(config.propeller_time_constant, ()))
+
     def privileged(self, params):
-        return jnp.stack([params.max_rpm, params.time_constant])
+        return jnp.stack([params.max_rpm, params.time_constant, params.thrust_scale])

@@ -34,17 +34,15 @@ import numpy as np
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingEnv
+from marinejax.envs.base import RewardConfig, heading_error
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
 
 @dataclasses.dataclass(frozen=True)
-class AutopilotConfig(EnvConfig):
-    control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
-    substeps: int = 2  # two 50 ms physics steps per action
+class AutopilotConfig(CruisingConfig):
     segments: int = 2
     segment_duration: float = 60.0  # s per set-point: a 180° turn takes the REMUS 23 s at full speed, 70 s at 0.5 m/s
     episode_length: int = 1200  # = segments × segment_duration / control_dt
@@ -56,20 +54,16 @@ class AutopilotConfig(EnvConfig):
     start_depth_error: float = 2.0  # m
     start_heading_error: float = math.pi / 2  # rad
     depth_clip: float = 5.0  # m, the observed depth error is clipped to ± this
-    top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed, linear in speed
     max_distance: float = 25.0  # m of depth error: the episode terminates beyond
-    integral_time_constant: float = 0.0  # the base's position integral does not apply
     # position: depth term 1/(1 + (e/position_scale)^2); precision: exp(−|e|/precision_scale) of the
     # depth error e; heading and speed as named; no upright term (a torpedo pitches to change depth)
     reward: RewardConfig = RewardConfig(upright=0.0, heading=1.0, speed=1.0)
 
     def __post_init__(self):
         super().__post_init__()
-        if self.integral_time_constant != 0:
-            raise UserError("config 'integral_time_constant' must be 0 for the autopilot (it observes its set-points instead)")
         check_range("depth_range", self.depth_range)
         check_range("speed_range", self.speed_range, low=0.0)
-        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip", "top_speed"):
+        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip"):
             if not getattr(self, name) > 0:
                 raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
         if self.segments < 1:

@@ -33,17 +33,15 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.envs import paths
-from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingEnv
+from marinejax.envs.base import RewardConfig, heading_error
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
 
 @dataclasses.dataclass(frozen=True)
-class PathFollowingConfig(EnvConfig):
-    control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
-    substeps: int = 2  # two 50 ms physics steps per action
+class PathFollowingConfig(CruisingConfig):
     episode_length: int = 600  # 60 s
     settle_time: float = 10.0  # s: the evaluation window starts after this
     max_distance: float = 10.0  # m off the path: the episode terminates beyond
@@ -51,8 +49,6 @@ class PathFollowingConfig(EnvConfig):
     start_heading_error: float = 0.3  # rad
     num_preview_points: int = 4
     preview_spacing: float = 5.0  # m along the path between observed points
-    top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed
-    integral_time_constant: float = 0.0  # the base's position integral does not apply
     path: paths.PathConfig = paths.PathConfig()
     # position: 1/(1 + (d/position_scale)^2) and precision: exp(−d/precision_scale) of the cross-track
     # distance d; heading: to the path's heading; speed: along the path. No upright term: a torpedo
@@ -61,9 +57,7 @@ class PathFollowingConfig(EnvConfig):
 
     def __post_init__(self):
         super().__post_init__()
-        if self.integral_time_constant != 0:
-            raise UserError("config 'integral_time_constant' must be 0 for path following (it observes the path instead)")
-        for name in ("settle_time", "start_offset", "start_heading_error", "preview_spacing", "top_speed"):
+        for name in ("settle_time", "start_offset", "start_heading_error", "preview_spacing"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
         if self.num_preview_points < 1:

@@ -32,12 +32,19 @@ class RandomizationConfig:
     thruster_gain: tuple[float, float] = (0.9, 1.1)  # per thruster
     thruster_time_constant: tuple[float, float] = (0.03, 0.1)  # s
     voltage: tuple[float, float] = (14.0, 16.8)  # V, supply (a 4S battery from flat to full)
+    # fins and propellers (torpedo AUVs)
+    fin_lift_scale: tuple[float, float] = (0.8, 1.2)  # per fin, times its lift (and drag): fouling, a bent fin, a lift slope that is a fit
+    fin_time_constant: tuple[float, float] = (0.05, 0.2)  # s, servo lag
+    propeller_thrust_scale: tuple[float, float] = (0.9, 1.1)  # times the thrust at a given shaft speed and flow
+    propeller_time_constant: tuple[float, float] = (0.5, 1.5)  # s, shaft speed lag
 
     def __post_init__(self):
-        for name in ("mass_scale", "inertia_scale", "added_mass_scale", "damping_scale", "thruster_gain"):
+        for name in ("mass_scale", "inertia_scale", "added_mass_scale", "damping_scale", "thruster_gain", "fin_lift_scale",
+                     "propeller_thrust_scale"):
             check_range(f"randomization.{name}", getattr(self, name), low=1e-3)
         check_range("randomization.net_buoyancy", self.net_buoyancy)
-        check_range("randomization.thruster_time_constant", self.thruster_time_constant, low=0.0)
+        for name in ("thruster_time_constant", "fin_time_constant", "propeller_time_constant"):
+            check_range(f"randomization.{name}", getattr(self, name), low=0.0)
         check_range("randomization.voltage", self.voltage, low=SUPPLY_VOLTAGE_RANGE[0])
         if self.voltage[1] > SUPPLY_VOLTAGE_RANGE[1]:
             raise UserError(f"config 'randomization.voltage' must lie in {SUPPLY_VOLTAGE_RANGE} V, got {self.voltage}")
