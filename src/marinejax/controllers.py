@@ -58,6 +58,7 @@ from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
 from marinejax.actuators import state_ranges
+from marinejax.actuators.fin import steering_mix
 from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200
 
 
@@ -303,17 +304,20 @@ class _Torpedo:
     rudder_max: float  # rad
     stern_max: float  # rad
     rpm_range: tuple[float, float]
+    mix: np.ndarray  # (actions, 3): the action of unit [rudder, stern planes, propeller] commands (`steering_mix`)
 
 
 def _torpedo(env: MarineEnv) -> _Torpedo:
     groups = env.plant.sys.actuators
     kinds = [g.kind.name for g in groups]
-    if kinds != ["fin", "fin", "propeller"] or not {"depth_error", "tangent"} & set(env.observation_fields()):
-        raise UserError(f"the torpedo autopilot needs the autopilot or a path-following task of a vehicle with a rudder, stern "
-                        f"planes and a propeller (in that order); {env.vehicle.name!r} has {kinds} on {type(env).__name__}")
+    if set(kinds) != {"fin", "propeller"} or not {"depth_error", "tangent"} & set(env.observation_fields()):
+        raise UserError(f"the torpedo autopilot needs the autopilot or a path-following task of a vehicle with fins and a "
+                        f"propeller; {env.vehicle.name!r} has {kinds} on {type(env).__name__}")
+    mix = steering_mix(groups)
     lo, hi = state_ranges(groups)
-    return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(hi[0]), stern_max=float(hi[1]),
-                    rpm_range=(float(lo[2]), float(hi[2])))
+    first = [int(np.argmax(mix[:, k] != 0)) for k in range(3)]  # the first fin of each command, and the propeller
+    return _Torpedo(fields=env.observation_fields(), dt=env.config.control_dt, rudder_max=float(hi[first[0]]),
+                    stern_max=float(hi[first[1]]), rpm_range=(float(lo[first[2]]), float(hi[first[2]])), mix=mix)
 
 
 def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarray:
@@ -352,11 +356,12 @@ def _torpedo_law(t: _Torpedo, gains) -> Controller:
         speed_error = obs[f["speed_error"]][0]
         lo, hi = t.rpm_range
         rpm = hi * speed_sp / top + (hi - lo) * (ks * speed_error + kis * i_speed)
-        action = jnp.stack([rudder / t.rudder_max, stern / t.stern_max, 2 * (rpm - lo) / (hi - lo) - 1])
+        command = jnp.stack([rudder / t.rudder_max, stern / t.stern_max, 2 * (rpm - lo) / (hi - lo) - 1])
+        action = command if np.array_equal(t.mix, np.eye(3)) else jnp.asarray(t.mix) @ command  # the fins' share
         # integrate only while unsaturated (anti-windup)
         carry = (i_depth + t.dt * depth_error * (jnp.abs(pitch_cmd) < max_pitch),
                  i_pitch + t.dt * (nose_up - pitch_cmd) * (jnp.abs(stern) < t.stern_max),
-                 i_speed + t.dt * speed_error * (jnp.abs(action[2]) < 1.0),
+                 i_speed + t.dt * speed_error * (jnp.abs(command[2]) < 1.0),
                  i_heading + t.dt * heading_error * (jnp.abs(rudder) < t.rudder_max))
         return jnp.clip(action, -1.0, 1.0), carry
 

@@ -13,6 +13,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
+from marinejax.actuators.fin import steering_mix
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState, initial_state, rollout
 from marinejax.vehicle import Vehicle
@@ -28,6 +29,23 @@ REMUS100_REFERENCE = {
     "heel into the turn, rudder 15°": (3.0052, "°"),
     "pitch after 5 s of stern planes 10°": (-42.735, "°"),
     "depth gained in those 5 s": (4.527, "m"),
+    "roll period, free decay from 10°": (1.0419, "s"),
+}
+
+# The Marine Systems Simulator's four-fin torpedo (torpedo.py of the same repository and commit: the
+# REMUS 100 hull with four independent fins, no fin drag, a 0.1 s propeller lag), run unmodified with
+# the simulator's own Euler integration at 5 ms and 2.5 ms, extrapolated to zero step (Richardson; the
+# roll period at 1 and 0.5 ms), a fresh vehicle for each manoeuvre (its actuators keep their state),
+# 2026-12-01. Fin commands as in `remus100_four_fin.xml`: the rudder is the top fin at +δ
+# and the bottom one at −δ, the stern planes the starboard fin at +δ and the port one at −δ.
+FOUR_FIN_REFERENCE = {
+    "terminal speed, 1525 rpm": (2.553645562, "m/s"),
+    "turning diameter, rudder 15°": (36.8532, "m"),
+    "turn rate, rudder 15°": (7.87349, "°/s"),
+    "heel into the turn, rudder 15°": (3.0359, "°"),
+    "pitch after 5 s of stern planes 10°": (-43.328, "°"),
+    "depth gained in those 5 s": (4.608, "m"),
+    "roll after 10 s, all four fins at +5°": (-3.3682, "°"),
     "roll period, free decay from 10°": (1.0419, "s"),
 }
 
@@ -86,7 +104,7 @@ def print_validation(vehicle: Vehicle, dt: float = 0.05) -> list[tuple[str, floa
     from rich.console import Console
     from rich.table import Table
 
-    if vehicle.name == "remus100":
+    if vehicle.name in TORPEDO_REFERENCES:
         rows, against = torpedo_table(vehicle, dt=dt), "reference implementation"
     else:
         rows, against = validation_table(vehicle, dt=dt), "closed form"
@@ -105,10 +123,11 @@ def torpedo_manoeuvres(vehicle: Vehicle, dt: float = 0.05) -> dict[str, float]:
     (15°) and stern planes at 10° for 5 s from the straight run, a free roll decay at rest. Values in
     the reference's units and FRD angle conventions (REMUS100_REFERENCE's keys)."""
     rudder, stern = (vehicle.sys.actuators[i].params.max_angle for i in (0, 1))
+    mix = steering_mix(vehicle.sys.actuators)  # identity for the REMUS's rudder and stern planes
     per_s = int(round(1 / dt))
 
     def actions(rudder_rad, stern_rad, steps):
-        return np.tile(np.array([rudder_rad / float(rudder), stern_rad / float(stern), 1.0], np.float32), (steps, 1))
+        return np.tile(mix @ np.array([rudder_rad / float(rudder), stern_rad / float(stern), 1.0], np.float32), (steps, 1))
 
     straight = rollout(vehicle, actions(0, 0, 60 * per_s), control_dt=dt)
     start = initial_state(vehicle, quaternion=straight.quaternion[-1], velocity=straight.velocity[-1],
@@ -119,12 +138,17 @@ def torpedo_manoeuvres(vehicle: Vehicle, dt: float = 0.05) -> dict[str, float]:
     dive = rollout(vehicle, actions(0, math.radians(10), 5 * per_s), start, control_dt=dt)
     nose = np.asarray(quat_to_mat(dive.quaternion[-1]))[2, 0]  # world z of the body's x axis
     rest = initial_state(vehicle, quaternion=(math.cos(math.radians(5)), math.sin(math.radians(5)), 0.0, 0.0))
-    decay = rollout(vehicle, np.tile(np.array([0, 0, -1], np.float32), (120, 1)), rest, control_dt=0.025)
+    decay = rollout(vehicle, np.tile(mix @ np.array([0, 0, -1], np.float32), (120, 1)), rest, control_dt=0.025)
     roll = np.asarray(quat_to_euler(decay.quaternion))[:, 0]
     t = np.asarray(decay.time)
     i = np.where((roll[:-1] > 0) & (roll[1:] <= 0))[0]
     crossings = t[i] + 0.025 * roll[i] / (roll[i] - roll[i + 1])
-    return {
+    extra = {}
+    if mix.shape[0] == 5:  # four independent fins: all at +5° roll the vehicle
+        fins = np.where(mix[:, 2] == 0, math.radians(5) / float(rudder), 1.0).astype(np.float32)
+        rolled = rollout(vehicle, np.tile(fins, (10 * per_s, 1)), start, control_dt=dt)
+        extra["roll after 10 s, all four fins at +5°"] = math.degrees(float(quat_to_euler(rolled.quaternion[-1])[0]))
+    return {**extra,
         "terminal speed, 1525 rpm": float(np.linalg.norm(straight.velocity[-1])),
         "turning diameter, rudder 15°": float(np.ptp(xy[:, 0]) + np.ptp(xy[:, 1])) / 2,
         "turn rate, rudder 15°": -math.degrees(float(rot[2] @ np.asarray(turn.angular_velocity[-1]))),
@@ -135,7 +159,10 @@ def torpedo_manoeuvres(vehicle: Vehicle, dt: float = 0.05) -> dict[str, float]:
     }
 
 
+TORPEDO_REFERENCES = {"remus100": REMUS100_REFERENCE, "remus100_four_fin": FOUR_FIN_REFERENCE}
+
+
 def torpedo_table(vehicle: Vehicle, dt: float = 0.05) -> list[tuple[str, float, float, str]]:
-    """Rows (name, measured, reference, unit) of the REMUS 100 against its reference implementation."""
+    """Rows (name, measured, reference, unit) of a torpedo of `TORPEDO_REFERENCES` against its reference implementation."""
     measured = torpedo_manoeuvres(vehicle, dt)
-    return [(name, measured[name], value, unit) for name, (value, unit) in REMUS100_REFERENCE.items()]
+    return [(name, measured[name], value, unit) for name, (value, unit) in TORPEDO_REFERENCES[vehicle.name].items()]

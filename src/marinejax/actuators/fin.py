@@ -94,3 +94,27 @@ class Fin(ActuatorKind):
 
     def privileged(self, params):
         return jnp.concatenate([jnp.stack([params.max_angle, params.time_constant]), params.lift_scale])
+
+
+def steering_mix(groups) -> np.ndarray:
+    """(number of actions, 3): the action for unit commands [rudder, stern planes, propeller] of a
+    torpedo whose fins are arranged in any way (a rudder and a stern-plane pair, four independent
+    fins, an X tail): each fin whose moment at positive deflection is mostly yaw follows the rudder
+    command, signed so that a positive rudder turns the bow to starboard; each fin whose moment is
+    mostly pitch follows the stern-plane command, signed so that positive stern planes pitch the
+    nose down (the REMUS reference's conventions); propellers follow the third command. With one
+    rudder and one stern-plane group it is the identity."""
+    rows = []
+    for g in groups:
+        if g.kind.name == "propeller":
+            rows += [[0.0, 0.0, 1.0]] * g.size
+        elif g.kind.name == "fin":
+            moment = np.cross(np.asarray(g.design.position, float), np.asarray(g.design.normal, float))  # FLU, per unit lift
+            for mx, my, mz in moment:
+                if abs(mz) >= abs(my):
+                    rows.append([-np.sign(mz), 0.0, 0.0])  # negative yaw moment: bow to starboard
+                else:
+                    rows.append([0.0, np.sign(my), 0.0])  # positive pitch moment (FLU): nose down
+        else:
+            raise UserError(f"a torpedo is steered by fins and driven by propellers; this one has actuator kind {g.kind.name!r}")
+    return np.array(rows, np.float32)

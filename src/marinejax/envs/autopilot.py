@@ -162,6 +162,7 @@ class Autopilot(CruisingEnv):
             "position": 1.0 / (1.0 + (e / r.position_scale) ** 2),
             "precision": jnp.exp(-jnp.abs(e) / r.precision_scale),
             "speed": jnp.exp(-jnp.abs(speed - vs.velocity[0]) / r.speed_scale),
+            "speed_penalty": -jnp.abs(speed - vs.velocity[0]),
             "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, heading)) / r.heading_precision_scale),
             **terms,
         }

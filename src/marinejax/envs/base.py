@@ -77,8 +77,9 @@ class RewardConfig:
     precision: exp(−d / precision_scale), sharp near zero error (weights tuned on station keeping); upright: ((up_z + 1)/2)^2;
     heading: (1 + cos(heading error))/2; effort: −mean(action^2); smoothness: −mean(Δaction^2);
     angular_velocity: −|ω|^2 (rad^2/s^2); speed (tasks with a speed set-point): exp(−|speed error| /
-    speed_scale); heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale),
-    sharp where the heading term is flat.
+    speed_scale); speed_penalty (the same tasks): −|speed error| (m/s), a slope at any error;
+    heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale), sharp where
+    the heading term is flat.
     """
 
     position: float = 2.0
@@ -92,6 +93,7 @@ class RewardConfig:
     angular_velocity: float = 0.02
     speed: float = 0.0
     speed_scale: float = 0.2  # m/s
+    speed_penalty: float = 0.0
     heading_precision: float = 0.0
     heading_precision_scale: float = 0.05  # rad
 

@@ -152,5 +152,6 @@ class PathFollowing(CruisingEnv):
             "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
             "precision": jnp.exp(-d / r.precision_scale),
             "speed": jnp.exp(-jnp.abs(task.speed - task.along_speed) / r.speed_scale),
+            "speed_penalty": -jnp.abs(task.speed - task.along_speed),
             **terms,
         }
