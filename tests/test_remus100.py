@@ -315,3 +315,24 @@ def test_four_fins_roll_the_vehicle_and_steer_like_a_rudder_and_stern_planes():
         wrench += np.asarray(g.kind.wrench(g.design, g.params, state, np.array([2.0, 0, 0, 0, 0, 0], np.float32)))
     assert wrench[3] < -0.1  # N m, FLU roll: port side down
     np.testing.assert_allclose(wrench[[0, 1, 2, 4, 5]], 0.0, atol=1e-6)
+
+
+def test_videos_turn_the_fins_with_their_deflection():
+    """The renderer turns each fin's geoms (the MJCF's marinejax:fin_geoms) about x̂ × n̂ by its state:
+    the rudder's leading edge goes to port (+y) at a positive deflection, and the frame changes."""
+    from marinejax.render import FrameRenderer
+
+    vehicle = mj.load_vehicle("remus100")
+    renderer = FrameRenderer(vehicle.path, 160, 120, vehicle.sys.qpos_adr)
+    try:
+        pose = (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3))
+        still = renderer.frame(*pose)
+        turned = renderer.frame(*pose, fin_angles={"rudder1": np.radians(15)})
+        rudder = [g for site, g, _ in renderer.fins if site == "rudder1"][0]
+        chord = renderer.data.geom_xmat[rudder[0]].reshape(3, 3)[:, 0]  # the fin box's x axis, world (= body here)
+        np.testing.assert_allclose(chord, [np.cos(np.radians(15)), np.sin(np.radians(15)), 0.0], atol=1e-6)
+        assert np.abs(still.astype(int) - turned).sum() > 0
+        back = renderer.frame(*pose, fin_angles={"rudder1": 0.0})
+        np.testing.assert_array_equal(back, still)
+    finally:
+        renderer.close()

@@ -14,10 +14,36 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from marinejax.actuators import custom_text
+from marinejax.errors import UserError
+
+
+FIN_GEOMS = "marinejax:fin_geoms"  # MJCF custom text: "site:geom,geom site:geom ...", the geoms a fin site turns
+
+
+def fin_geoms(model: mujoco.MjModel) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The vehicle's moving fins from its custom text `marinejax:fin_geoms`: (site name, geom ids,
+    hinge axis in the body frame). A fin turns about x̂ × n̂ (n̂ the site's +z, its lift direction at
+    positive deflection), so a positive deflection turns its leading edge towards n̂."""
+    fins = []
+    for entry in (custom_text(model, FIN_GEOMS) or "").split():
+        site, _, geoms = entry.partition(":")
+        site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+        ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in geoms.split(",")])
+        if site_id < 0 or np.any(ids < 0) or not geoms:
+            raise UserError(f"custom text {FIN_GEOMS!r}: entry {entry!r} must be <site>:<geom>[,<geom>...] with a site and "
+                            f"geoms of the model")
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.site_quat[site_id])
+        axis = np.cross([1.0, 0.0, 0.0], rot.reshape(3, 3)[:, 2])
+        fins.append((site, ids, axis / np.linalg.norm(axis)))
+    return fins
+
 
 class FrameRenderer:
     """Offscreen RGB frames (height, width, 3) uint8 of a vehicle from its 'chase' camera, with the
-    target drawn as a red sphere and an optional reference path as small grey dots.
+    target drawn as a red sphere and an optional reference path as small grey dots; fins listed in
+    the MJCF's `marinejax:fin_geoms` turn with their deflection when `frame` is given the actuator states.
 
     MuJoCo chooses its OpenGL backend when it is first imported: on a machine without a display,
     start Python with MUJOCO_GL=egl."""
@@ -26,6 +52,12 @@ class FrameRenderer:
         self.model = mujoco.MjModel.from_xml_path(str(model_path))
         self.qpos_adr = int(qpos_adr)  # where the vehicle's free joint starts in qpos (Vehicle.sys.qpos_adr)
         self.data = mujoco.MjData(self.model)
+        self.fins = fin_geoms(self.model)
+        self.rest_quat = self.model.geom_quat.copy()
+        for _, geoms, _ in self.fins:
+            # the compiler marks a geom aligned with its body as sharing its frame and then ignores
+            # geom_quat: moving fins must not
+            self.model.geom_sameframe[geoms] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE
         try:
             self.renderer = mujoco.Renderer(self.model, height=height, width=width)
         except Exception as err:  # no OpenGL context (GLFW without a display, missing EGL, ...)
@@ -34,9 +66,16 @@ class FrameRenderer:
                 "without a display set MUJOCO_GL=egl (or osmesa) before Python starts"
             ) from err
 
-    def frame(self, position: np.ndarray, quaternion: np.ndarray, target: np.ndarray, path: np.ndarray | None = None) -> np.ndarray:
+    def frame(self, position: np.ndarray, quaternion: np.ndarray, target: np.ndarray, path: np.ndarray | None = None,
+              fin_angles: dict[str, float] | None = None) -> np.ndarray:
         """The frame of the vehicle at world `position` (m) and `quaternion` (w, x, y, z, body → world)
-        with the target at world position `target` (m) and the reference `path` (K, 3) if given."""
+        with the target at world position `target` (m), the reference `path` (K, 3) if given, and the
+        fins turned by `fin_angles` (site name → deflection, rad)."""
+        for site, geoms, axis in self.fins:
+            turn = np.zeros(4)
+            mujoco.mju_axisAngle2Quat(turn, axis, float((fin_angles or {}).get(site, 0.0)))
+            for g in geoms:
+                mujoco.mju_mulQuat(self.model.geom_quat[g], turn, self.rest_quat[g])
         a = self.qpos_adr
         self.data.qpos[a : a + 3] = position
         self.data.qpos[a + 3 : a + 7] = quaternion
@@ -57,13 +96,17 @@ class FrameRenderer:
 
 
 def render_frames(model_path: str, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, qpos_adr: int = 0,
-                  width: int = 640, height: int = 480) -> list[np.ndarray]:
-    """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m);
-    the targets, thinned to about 60 points, are drawn as the reference path."""
+                  width: int = 640, height: int = 480, actuators: np.ndarray | None = None,
+                  actuator_names: tuple[str, ...] = ()) -> list[np.ndarray]:
+    """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m),
+    and the actuator states (T, n) named `actuator_names` (fins' in rad) if given; the targets,
+    thinned to about 60 points, are drawn as the reference path."""
     renderer = FrameRenderer(model_path, width, height, qpos_adr)
     try:
         path = targets[:: max(1, len(targets) // 60)]
-        return [renderer.frame(p, q, target, path) for p, q, target in zip(position, quaternion, targets)]
+        fins = [(site, list(actuator_names).index(site)) for site, _, _ in renderer.fins if site in actuator_names]
+        angles = [{site: float(a[i]) for site, i in fins} for a in actuators] if actuators is not None else [None] * len(position)
+        return [renderer.frame(p, q, target, path, fin) for p, q, target, fin in zip(position, quaternion, targets, angles)]
     finally:
         renderer.close()
 
@@ -86,7 +129,7 @@ def write_video(frames: list[np.ndarray], fps: float, out_stem: Path) -> Path:
 
 
 def render_video(model_path: Path, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, fps: float,
-                 out_stem: Path, qpos_adr: int = 0) -> Path:
+                 out_stem: Path, qpos_adr: int = 0, actuators: np.ndarray | None = None, actuator_names: tuple[str, ...] = ()) -> Path:
     """Render one episode (arrays as `render_frames`) offscreen (MuJoCo, EGL) in a subprocess;
     returns the MP4 (or GIF) path.
 
@@ -94,7 +137,8 @@ def render_video(model_path: Path, position: np.ndarray, quaternion: np.ndarray,
     process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
     """
     data = out_stem.with_suffix(".npz")
-    np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_path), qpos_adr=qpos_adr)
+    extra = {} if actuators is None else {"actuators": actuators, "actuator_names": np.array(actuator_names)}
+    np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_path), qpos_adr=qpos_adr, **extra)
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.run([sys.executable, "-m", "marinejax.render", str(data), str(out_stem)],
                           env=env, capture_output=True, text=True)
@@ -106,7 +150,9 @@ def render_video(model_path: Path, position: np.ndarray, quaternion: np.ndarray,
 
 def main(argv: list[str]) -> int:
     data = np.load(argv[0])
-    frames = render_frames(str(data["model"]), data["position"], data["quaternion"], data["targets"], int(data["qpos_adr"]))
+    actuators = (data["actuators"], tuple(str(n) for n in data["actuator_names"])) if "actuators" in data else (None, ())
+    frames = render_frames(str(data["model"]), data["position"], data["quaternion"], data["targets"], int(data["qpos_adr"]),
+                           actuators=actuators[0], actuator_names=actuators[1])
     print(write_video(frames, float(data["fps"]), Path(argv[1])))
     return 0
 

@@ -59,7 +59,8 @@ def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path
 
         try:
             summary["video"] = str(render_video(env.vehicle.path, result["position"][0], result["quaternion"][0], result["target"][0],
-                                                1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr))
+                                                1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr,
+                                                result["actuators"][0], env.vehicle.actuator_names))
         except RuntimeError as err:
             summary["video_error"] = str(err)
     (out_dir / "eval.json").write_text(json.dumps(summary, indent=2))

@@ -25,7 +25,7 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     """Run `episodes` full episodes (episode_length steps, no early reset) in one jitted call.
 
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
-    error (E, T), done (E, T), and (E, T) each of the task's other errors (`MarineEnv.error_names`:
+    error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T) each of the task's other errors (`MarineEnv.error_names`:
     heading_error_deg, and e.g. speed_error).
     """
     steps = env.config.episode_length
@@ -34,15 +34,16 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     def record(s):
         vs = env.plant.vehicle_state(s.pipeline_state)
         return (vs.position, vs.quaternion, env.target_position(s.info), s.metrics["position_error"], s.done,
-                {name: s.metrics[name] for name in others})
+                {name: s.metrics[name] for name in others}, vs.actuators)
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    _, (pos, quat, target, err, done, errors) = rollout(env, controller, keys, steps, record)
+    _, (pos, quat, target, err, done, errors, actuators) = rollout(env, controller, keys, steps, record)
     to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
     return {
         "time": env.config.control_dt * np.arange(1, steps + 1),
         "position": to_np(pos), "target": to_np(target), "error": to_np(err),
-        "quaternion": to_np(quat), "done": to_np(done), **{name: to_np(e) for name, e in errors.items()},
+        "quaternion": to_np(quat), "done": to_np(done), "actuators": to_np(actuators),
+        **{name: to_np(e) for name, e in errors.items()},
     }
 
 
