@@ -14,7 +14,7 @@ from marinejax.controllers import (LQRConfig, PIDConfig, TorpedoAutopilotConfig,
                                    pid_controller, pid_gains, torpedo_autopilot)
 from marinejax.errors import UserError
 from marinejax.actuators.t200 import t200_thrust
-from marinejax.train.statistics import rollout_controller, summarize
+from marinejax.statistics import rollout_controller, summarize
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def test_torpedo_autopilot_holds_depth_and_heading():
     stats = summarize(env, rollout_controller(env, torpedo_autopilot(env, TorpedoAutopilotConfig(depth_gain=0.8)), episodes=16, seed=12345))
     assert stats["position_error_median_m"] < 0.05 and stats["heading_error_mean_deg"] < 10, stats
     assert stats["terminated_episodes"] == 0
-    with pytest.raises(UserError, match="rudder, stern planes and a propeller"):
+    with pytest.raises(UserError, match="needs the autopilot or a path-following task of a vehicle with fins and a propeller"):
         torpedo_autopilot(marinejax.make("BlueROV2Heavy-StationKeeping"))
 
 

@@ -14,7 +14,7 @@ import marinejax
 from marinejax.control import policy_controller, rollout
 from marinejax.export import export_policy, load_numpy_policy
 from marinejax.train.checkpoints import load_policy
-from marinejax.train.statistics import rollout_policy
+from marinejax.statistics import rollout_policy
 
 ENV = "BlueROV2-StationKeeping"  # a shipped policy
 

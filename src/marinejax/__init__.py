@@ -27,7 +27,7 @@ from marinejax.physics import (
 )
 from marinejax.vehicle import Vehicle, VehicleSystem, list_vehicles, load_vehicle
 
-__version__ = "0.1.0"
+from marinejax._version import __version__ as __version__
 
 __all__ = [
     "PhysicsState",

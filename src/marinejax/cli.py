@@ -16,7 +16,6 @@ switches both off for one command.
 from __future__ import annotations
 
 import argparse
-import ast
 import json
 import math
 import os
@@ -26,6 +25,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from marinejax.config import parse_key_values
 from marinejax.errors import UserError
 
 
@@ -64,24 +64,6 @@ def quiet_dependency_warnings() -> None:
             warnings.filterwarnings("ignore", category=category, module=rf"{package}(\.|$)")
 
 
-def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
-    """Parse KEY=VALUE strings; VALUE is true/false, a Python literal (number, bool, tuple, string) or a bare string."""
-    out = {}
-    for item in items or []:
-        key, sep, raw = item.partition("=")
-        if not sep or not key:
-            raise UserError(f"{flag} expects KEY=VALUE, got {item!r}")
-        if raw.strip().lower() in ("true", "false"):
-            out[key.strip()] = raw.strip().lower() == "true"
-            continue
-        try:
-            value = ast.literal_eval(raw)
-        except (ValueError, SyntaxError):
-            value = raw
-        out[key.strip()] = value
-    return out
-
-
 def _validate(args: argparse.Namespace) -> int:
     from marinejax.validation import print_validation
     from marinejax.vehicle import load_vehicle
@@ -107,7 +89,8 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.console import make_console
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.progress import TrainingProgress
-    from marinejax.train.runner import check_devices, load_train_config, train
+    from marinejax.train.hyperparams import load_train_config
+    from marinejax.train.runner import check_devices, train
 
     console = make_console()
     target = _check_target(args.target_error)
@@ -130,7 +113,7 @@ def _train(args: argparse.Namespace) -> int:
         if args.randomize:
             env_overrides["randomization.enabled"] = True
         config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=env_overrides)
-        from marinejax.train.runner import build_env
+        from marinejax.train.hyperparams import build_env
 
         build_env(config)  # validate the env overrides before creating a run directory
         run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.env}-{time.strftime('%Y%m%d-%H%M%S')}"

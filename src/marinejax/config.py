@@ -7,6 +7,8 @@ listing the valid ones, and a value of the wrong kind is an error naming the fie
 
 from __future__ import annotations
 
+import ast
+
 import dataclasses
 import math
 from typing import Any, Mapping, TypeVar
@@ -112,3 +114,21 @@ def check_range(name: str, value: Any, low: float | None = None, positive: bool 
         raise UserError(f"config '{name}' must not go below {low}, got {value!r}")
     if positive and lo <= 0:
         raise UserError(f"config '{name}' must be > 0, got {value!r}")
+
+
+def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
+    """Parse KEY=VALUE strings; VALUE is true/false, a Python literal (number, bool, tuple, string) or a bare string."""
+    out = {}
+    for item in items or []:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise UserError(f"{flag} expects KEY=VALUE, got {item!r}")
+        if raw.strip().lower() in ("true", "false"):
+            out[key.strip()] = raw.strip().lower() == "true"
+            continue
+        try:
+            value = ast.literal_eval(raw)
+        except (ValueError, SyntaxError):
+            value = raw
+        out[key.strip()] = value
+    return out

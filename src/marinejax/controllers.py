@@ -57,6 +57,7 @@ from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
+from marinejax.statistics import summarize
 from marinejax.actuators import state_ranges
 from marinejax.actuators.fin import steering_mix
 from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200
@@ -419,7 +420,6 @@ def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED,
     evaluation statistic) over `episodes` episodes of `env` from `seed`; returns (config, {value: error (m)}).
     Every grid value runs in one jitted call (the gains are traced), so tuning compiles once."""
     from marinejax.control import run_steps
-    from marinejax.train.statistics import summarize
 
     if name not in TUNING_GRIDS:
         raise UserError(f"unknown controller {name!r}; valid: {list(CONTROLLERS)}")

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from marinejax._version import __version__
 from marinejax.errors import UserError
 
 FORMATS = ("npz", "onnx")
@@ -84,7 +85,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
     action = (env.vehicle.describe_action() if c.action_mode == "thrusters"
               else f"body wrench [Fx, Fy, Fz, Mx, My, Mz] divided by wrench_scale {list(c.wrench_scale)} (N, N m), in [-1, 1]")
     metadata = {
-        "marinejax_version": __import__("marinejax").__version__,
+        "marinejax_version": __version__,
         "env": config.env,
         "env_overrides": dict(config.env_overrides),
         "checkpoint": str(ckpt),

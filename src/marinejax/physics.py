@@ -29,7 +29,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from marinejax import actuators
+import marinejax.actuators as actuators
 from marinejax.errors import UserError
 from marinejax.frames import quat_integrate, quat_to_mat
 from marinejax.hydro.forces import hydro_terms

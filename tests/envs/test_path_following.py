@@ -105,7 +105,7 @@ def test_errors_and_observation_follow_the_vehicle_along_the_path(env):
 
 def test_line_of_sight_autopilot_follows_the_circle(env):
     from marinejax.controllers import TorpedoAutopilotConfig, torpedo_autopilot
-    from marinejax.train.statistics import rollout_controller, summarize
+    from marinejax.statistics import rollout_controller, summarize
 
     config = TorpedoAutopilotConfig(heading_gain=5.0, heading_derivative_time=1.0, lookahead=5.0)
     stats = summarize(env, rollout_controller(env, torpedo_autopilot(env, config), 8, seed=1))

@@ -212,7 +212,7 @@ def test_more_devices_than_there_are_is_a_user_error():
 
 
 def test_key_values_take_json_style_booleans_and_python_literals():
-    from marinejax.cli import parse_key_values
+    from marinejax.config import parse_key_values
 
     values = parse_key_values(["a=true", "b=False", "c=0.5", "d=(1, 2)", "e=ou", "f=FALSE"], "--env")
     assert values == {"a": True, "b": False, "c": 0.5, "d": (1, 2), "e": "ou", "f": False}

@@ -61,8 +61,8 @@ def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, targ
     """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `trace_cache`: as
     `train`'s."""
     from marinejax.train.evaluate import evaluate_run
-    from marinejax.train.hyperparams import tuned_config, with_overrides
-    from marinejax.train.runner import load_train_config, train
+    from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
+    from marinejax.train.runner import train
 
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
@@ -153,7 +153,7 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     """`marinejax bench training`; `trace_cache` as `train`'s (the CLI passes its folder)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    from marinejax.cli import parse_key_values
+    from marinejax.config import parse_key_values
     from marinejax.envs import list_envs
 
     unknown = [e for e in args.envs if e not in list_envs()]

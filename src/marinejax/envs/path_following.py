@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.envs import paths
+import marinejax.envs.paths as paths
 from marinejax.envs.base import RewardConfig, heading_error
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv
 from marinejax.errors import UserError

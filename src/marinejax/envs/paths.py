@@ -30,7 +30,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs import trajectories
+import marinejax.envs.trajectories as trajectories
 from marinejax.errors import UserError
 
 KINDS = ("lines", "circle", "helix", "lemniscate")

@@ -35,7 +35,6 @@ import numpy as np
 from brax.envs.base import State, Wrapper
 from jax import export
 
-import marinejax
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 
@@ -45,7 +44,7 @@ _SUFFIX = ".jaxexport"
 
 def _source_digest() -> str:
     """sha256 of marinejax's Python source files, names included."""
-    root = Path(marinejax.__file__).resolve().parent
+    root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode())

@@ -21,7 +21,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.hydro import hull as hull_terms
+import marinejax.hydro.hull as hull_terms
 from marinejax.hydro.params import HydroParams
 
 

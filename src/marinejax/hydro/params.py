@@ -9,7 +9,7 @@ import numpy as np
 from flax import struct
 
 from marinejax.errors import UserError
-from marinejax.hydro import hull as hull_terms
+import marinejax.hydro.hull as hull_terms
 
 _SIZES = {
     "added_mass": 6,

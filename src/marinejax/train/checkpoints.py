@@ -16,7 +16,7 @@ from typing import Any
 import jax
 
 from marinejax.errors import UserError
-from marinejax.train.hyperparams import TrainConfig
+from marinejax.train.hyperparams import TrainConfig, build_env, load_train_config, network_factory
 
 CHECKPOINTS = "checkpoints"
 BEST = "best.json"
@@ -66,8 +66,6 @@ def load_params(path: Path | str, env_overrides: dict[str, Any] | None = None, w
     a checkpoint or a shipped policy's env name; checks the env's sizes against the checkpoint's."""
     from brax.training.agents.ppo import checkpoint as ppo_checkpoint
 
-    from marinejax.train.runner import build_env, load_train_config
-
     run_dir, ckpt = resolve_checkpoint(path, which)
     try:
         config = load_train_config(run_dir)
@@ -102,8 +100,6 @@ def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: 
     from brax.training import types
     from brax.training.acme import running_statistics
     from brax.training.agents.ppo import networks as ppo_networks
-
-    from marinejax.train.runner import network_factory
 
     config, env, params, ckpt = load_params(path, env_overrides, which)
     # Brax 0.14's checkpoint.load_policy cannot rebuild networks it saved itself; build it as ppo.train does.

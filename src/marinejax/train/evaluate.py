@@ -11,7 +11,7 @@ from typing import Any
 
 from marinejax.train.checkpoints import best_checkpoint, latest_checkpoint, load_policy
 from marinejax.train.paths import plot_paths
-from marinejax.train.statistics import rollout_controller, rollout_policy, summarize
+from marinejax.statistics import rollout_controller, rollout_policy, summarize
 
 
 def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,

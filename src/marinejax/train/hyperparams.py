@@ -1,4 +1,5 @@
-"""PPO hyperparameters, kept apart from the env configs; tuned values per task.
+"""PPO hyperparameters, kept apart from the env configs; tuned values per task; the env, network and
+saved config a training config stands for.
 
 `tuned_config(env_name)` gives the settings the README's results come from; any field can be
 overridden (`with_overrides`), and a misspelled key is an error.
@@ -7,10 +8,14 @@ overridden (`with_overrides`), and a misspelled key is an error.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping
+import functools
+import json
+from pathlib import Path
+from typing import Any, Callable, Mapping
 
 from marinejax.config import apply_overrides
-from marinejax.envs.registry import env_spec
+from marinejax.envs.base import MarineEnv
+from marinejax.envs.registry import env_spec, make
 from marinejax.errors import UserError
 
 
@@ -114,3 +119,31 @@ def with_overrides(config: TrainConfig, ppo: Mapping[str, Any] | None = None, en
     new_ppo = apply_overrides(config.ppo, ppo or {}, prefix="ppo.")
     merged = {**config.env_overrides, **(env or {})}
     return dataclasses.replace(config, ppo=new_ppo, env_overrides=merged)
+
+
+def network_factory(ppo: PPOConfig, observation_size: int | Mapping | None = None) -> Callable:
+    """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
+    the policy reads "state" and the critic "privileged_state"."""
+    from brax.training.agents.ppo import networks as ppo_networks
+
+    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
+    return functools.partial(
+        ppo_networks.make_ppo_networks,
+        policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
+        value_hidden_layer_sizes=tuple(ppo.value_hidden),
+        init_noise_std=ppo.init_noise_std,
+        **keys,
+    )
+
+
+def build_env(config: TrainConfig) -> MarineEnv:
+    """The env of a training config: its registered env with the config's overrides."""
+    return make(config.env, **config.env_overrides)
+
+
+def load_train_config(run_dir: Path) -> TrainConfig:
+    """The training config a run directory's config.json records."""
+    data = json.loads((Path(run_dir) / "config.json").read_text())
+    ppo = data["ppo"]
+    ppo = PPOConfig(**{**ppo, "policy_hidden": tuple(ppo["policy_hidden"]), "value_hidden": tuple(ppo["value_hidden"])})
+    return TrainConfig(env=data["env"], ppo=ppo, env_overrides=data["env_overrides"])

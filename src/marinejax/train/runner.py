@@ -16,43 +16,24 @@ import functools
 import json
 import time
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable
 
 import jax
 import numpy as np
 
 from marinejax.config import to_dict
-from marinejax.envs import make, wrap_for_training
+from marinejax.envs import wrap_for_training
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
-from marinejax.train.hyperparams import PPOConfig, TrainConfig
+from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
 
 WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
 
 
 class _TargetReached(Exception):
     """Raised from the progress callback to end ppo.train once the target error is met."""
-
-
-def network_factory(ppo: PPOConfig, observation_size: int | Mapping | None = None) -> Callable:
-    """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
-    the policy reads "state" and the critic "privileged_state"."""
-    from brax.training.agents.ppo import networks as ppo_networks
-
-    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
-    return functools.partial(
-        ppo_networks.make_ppo_networks,
-        policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
-        value_hidden_layer_sizes=tuple(ppo.value_hidden),
-        init_noise_std=ppo.init_noise_std,
-        **keys,
-    )
-
-
-def build_env(config: TrainConfig) -> MarineEnv:
-    return make(config.env, **config.env_overrides)
 
 
 def machine() -> dict[str, Any]:
@@ -88,13 +69,6 @@ def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
         "machine": machine(),
     }
     (run_dir / "config.json").write_text(json.dumps(data, indent=2))
-
-
-def load_train_config(run_dir: Path) -> TrainConfig:
-    data = json.loads((Path(run_dir) / "config.json").read_text())
-    ppo = data["ppo"]
-    ppo = PPOConfig(**{**ppo, "policy_hidden": tuple(ppo["policy_hidden"]), "value_hidden": tuple(ppo["value_hidden"])})
-    return TrainConfig(env=data["env"], ppo=ppo, env_overrides=data["env_overrides"])
 
 
 def _json_metrics(metrics: dict[str, Any]) -> dict[str, float]:
