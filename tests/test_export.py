@@ -44,7 +44,9 @@ def test_numpy_export_matches_the_jax_policy(tmp_path, shipped, observations):
     np.testing.assert_allclose(numpy_policy(observations[7]), expected[7], atol=1e-5)  # one observation
     meta = numpy_policy.metadata
     assert meta["env"] == ENV and meta["observation_size"] == env.observation_size and meta["action_size"] == 6
-    assert meta["control_dt_s"] == 0.05 and "position error" in meta["observation_layout"]
+    assert meta["control_dt_s"] == 0.05
+    assert meta["observation_layout"][0] == {"name": "position_error", "start": 0, "stop": 3, "unit": "m", "frame": "body",
+                                             "meaning": "target (or the path's closest point) minus position"}
     assert "thruster" in meta["action"] and meta["observation_mode"].startswith("state")
 
 

@@ -11,14 +11,13 @@ The exported function is the deterministic PPO policy of the checkpoint: the obs
 normalized with the running statistics of training, (obs − mean) / std, an MLP with swish hidden
 layers, and tanh of the mean half of the last layer. Both files carry the same metadata (JSON in
 `metadata` of the npz, in the ONNX model's metadata_props): env, checkpoint, control period,
-observation size and layout (the task's docstring), observation mode, action size and meaning
+observation size and layout (`MarineEnv.observation_layout`: per field its slice, unit and frame), observation mode, action size and meaning
 (thruster order), frames and units.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import json
 from pathlib import Path
 from typing import Any
@@ -92,7 +91,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
         "control_dt_s": c.control_dt,
         "observation_size": int(env.observation_size),
         "observation_mode": _observation_mode(c),
-        "observation_layout": inspect.getdoc(inspect.getmodule(type(env))),
+        "observation_layout": env.observation_layout(),
         "action_size": int(env.action_size),
         "action": action,
         "frames": "world: x, y horizontal, z up; body: FLU (x forward, y left, z up); SI units",

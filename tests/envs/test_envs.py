@@ -339,3 +339,15 @@ def test_window_error_sums_to_the_evaluation_statistic(name, max_distance):
     first_done = int(np.argmax(np.asarray(done[1]) > 0))
     assert np.asarray(done[1]).any()
     assert float(np.sum(metrics["window_error"][1][: first_done + 1])) >= env.config.max_distance
+
+
+@pytest.mark.parametrize("name", ["BlueROV2-StationKeeping", "BlueROV2Heavy-LemniscateTracking", "Remus100-Autopilot",
+                                  "Remus100FourFin-WaypointFollowing"])
+def test_the_observation_layout_names_every_component_with_its_unit_and_frame(name):
+    env = E.make(name)
+    layout = env.observation_layout()
+    covered = np.zeros(env.observation_size, bool)
+    for field in layout:
+        covered[field["start"] : field["stop"]] = True
+        assert field["unit"] and field["frame"] and field["meaning"]
+    assert covered.all() and layout[-1]["stop"] == env.observation_size

@@ -100,6 +100,29 @@ class RewardConfig:
 
 OBSERVATION_MODES = ("state", "sensors")
 
+# What each observation field (`MarineEnv.observation_fields`) holds: (unit, frame, meaning).
+# Body frame: FLU (x forward, y left, z up) at the CG; world frame: z up.
+OBSERVATION_FIELDS = {
+    "position_error": ("m", "body", "target (or the path's closest point) minus position"),
+    "reference_ahead": ("m", "body", "reference positions at t, t + spacing, ... minus position, 3 per point"),
+    "reference_velocity": ("m/s", "body", "velocity of the reference at t"),
+    "path_ahead": ("m", "body", "points of the path preview_spacing, 2 preview_spacing, ... m beyond the closest one, minus position"),
+    "tangent": ("1", "body", "unit tangent of the path at the closest point"),
+    "depth_error": ("m", "world z", "depth set-point minus depth (positive: rise), clipped to ±depth_clip"),
+    "speed_error": ("m/s", "-", "speed set-point minus the surge speed (autopilot) or the speed along the path"),
+    "set_point_depth": ("m / 10", "world z", "depth set-point divided by 10"),
+    "set_point_heading": ("1", "world", "sin, cos of the heading set-point"),
+    "set_point_speed": ("m/s", "-", "speed set-point"),
+    "up": ("1", "body", "world up (0, 0, 1): roll and pitch"),
+    "heading": ("1", "-", "sin, cos of the heading error (target minus heading)"),
+    "velocity": ("m/s", "body", "linear velocity"),
+    "angular_velocity": ("rad/s", "body", "angular velocity"),
+    "actuators": ("1", "-", "actuator states, each scaled to [-1, 1] by its command range"),
+    "last_action": ("1", "-", "the previous action, in [-1, 1]"),
+    "integral_position": ("m s", "body", "leaky integral of the position error"),
+    "integral_heading": ("rad s", "-", "leaky integral of the heading error"),
+}
+
 
 @dataclasses.dataclass(frozen=True)
 class EnvConfig(PlantConfig):
@@ -334,6 +357,14 @@ class MarineEnv(Env):
             n = self._task_observation_size
             fields.update(integral_position=slice(n, n + 3), integral_heading=slice(n + 3, n + 4))
         return fields
+
+    def observation_layout(self) -> list[dict[str, Any]]:
+        """The observation array as data: per field its name, [start, stop), unit, frame and meaning
+        (`OBSERVATION_FIELDS`), in order (fields may overlap: tracking's first reference point is its
+        position error)."""
+        fields = sorted(self.observation_fields().items(), key=lambda f: (f[1].start, f[1].stop))
+        return [{"name": name, "start": sl.start, "stop": sl.stop, "unit": OBSERVATION_FIELDS[name][0],
+                 "frame": OBSERVATION_FIELDS[name][1], "meaning": OBSERVATION_FIELDS[name][2]} for name, sl in fields]
 
     @functools.cached_property
     def _task_observation_size(self) -> int:
