@@ -16,7 +16,6 @@ switches both off for one command.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -139,13 +138,10 @@ def _train(args: argparse.Namespace) -> int:
 
     plot_learning_curve(run_dir)
     if not args.no_eval:
-        from marinejax.train.evaluate import evaluate_run
+        from marinejax.train.evaluate import evaluate_finished_run
 
         console.print("final evaluation (deterministic policy) ...")
-        result = evaluate_run(run_dir, episodes=args.episodes, video=not args.no_video)
-        summary["evaluation"] = result
-        (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
-        _print_eval(console, result)
+        _print_eval(console, evaluate_finished_run(run_dir, summary, episodes=args.episodes, video=not args.no_video))
     console.print(f"run directory: {run_dir} (config.json, metrics.jsonl, checkpoints/, curve.png, summary.json, eval/)")
     return 0
 

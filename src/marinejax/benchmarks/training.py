@@ -60,8 +60,9 @@ def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, targ
              log=print, trace_cache: Path | None = None) -> dict[str, Any]:
     """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `trace_cache`: as
     `train`'s."""
-    from marinejax.train.evaluate import evaluate_run
+    from marinejax.train.evaluate import evaluate_finished_run
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
+    from marinejax.train.curves import WINDOW_ERROR
     from marinejax.train.runner import train
 
     summary_path = run_dir / "summary.json"
@@ -73,14 +74,13 @@ def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, targ
         config = load_train_config(run_dir) if resume else with_overrides(tuned_config(env_name), ppo={**ppo, "seed": seed}, env=env)
 
         def on_eval(r: dict) -> None:
-            err = r.get("eval/episode_window_error")
+            err = r.get(WINDOW_ERROR)
             log(f"{env_name} seed {seed}: {r['step']:>10,} env steps, {r['elapsed']:6.0f} s, "
                 f"evaluation error {err if err is None else f'{err:.4f} m'}")
 
         summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=False,
                         trace_cache=trace_cache)
-        summary["evaluation"] = evaluate_run(run_dir, episodes=episodes, video=False)
-        summary_path.write_text(json.dumps(summary, indent=2))
+        evaluate_finished_run(run_dir, summary, episodes=episodes, video=False)
     ev = summary["evaluation"]
     reached = summary.get("time_to_target") or {}
     return {

@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
+
 
 def evaluation_error(record: dict) -> float | None:
     """The evaluation error of a metrics.jsonl record (m): the task's window error (what `marinejax
     eval` reports), or for runs from before it was logged, the mean error over whole episodes."""
-    if "eval/episode_window_error" in record:
-        return record["eval/episode_window_error"]
+    if WINDOW_ERROR in record:
+        return record[WINDOW_ERROR]
     if "eval/episode_position_error" in record:
         return record["eval/episode_position_error"] / max(record.get("eval/avg_episode_length", 1.0), 1.0)
     return None

@@ -35,6 +35,15 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     return _write(env, result, summary, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir, video)
 
 
+def evaluate_finished_run(run_dir: Path, summary: dict[str, Any], episodes: int = 64, video: bool = True) -> dict[str, Any]:
+    """The final evaluation of a run that `train` just finished: `evaluate_run` of its best
+    checkpoint, recorded as summary["evaluation"] in its summary.json; returns the evaluation."""
+    result = evaluate_run(run_dir, episodes=episodes, video=video)
+    summary["evaluation"] = result
+    (Path(run_dir) / "summary.json").write_text(json.dumps(summary, indent=2))
+    return result
+
+
 def evaluate_controller(env_name: str, controller: str, out_dir: Path | None = None, episodes: int = 64, seed: int = 12345,
                         env_overrides: dict[str, Any] | None = None, video: bool = True, progress=None) -> dict[str, Any]:
     """Evaluate a classical controller (`marinejax.controllers`, tuned first) on env `env_name`

@@ -27,9 +27,9 @@ from marinejax.envs.base import MarineEnv
 from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
+from marinejax.train.curves import WINDOW_ERROR
 from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
 
-WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
 
 
 class _TargetReached(Exception):
