@@ -136,6 +136,39 @@ def test_position_fix_rate_latency_and_noise(samples):
     np.testing.assert_allclose(lag, delay * DT * 0.5, rtol=0.05)
 
 
+def test_acoustic_fix_noise_grows_with_range_and_a_gps_fix_needs_the_surface():
+    """range_noise: std per axis = noise + range_noise × slant range to the beacon; surface_only: no
+    fix below surface_depth (the launch fix excepted), fixes again at the surface."""
+    cfg = dataclasses.replace(CFG, position_fix=dataclasses.replace(CFG.position_fix, rate_hz=20.0, latency=0.0,
+                                                                     range_noise=0.01, beacon=(0.0, 0.0, 0.0)))
+    suite = SensorSuite(cfg, DT, G)
+
+    def fixes(depth, key):
+        vs = VehicleState(position=jnp.array([0.0, 0.0, -depth]), quaternion=quat_from_euler(0.0, 0.0, 0.0),
+                          velocity=jnp.zeros(3), angular_velocity=jnp.zeros(3), actuators=jnp.zeros(6))
+        k_p, k_i, k_s = jax.random.split(key, 3)
+        state, _ = suite.init(k_i, suite.sample_params(k_p), vs)
+        return jax.lax.scan(lambda st, k: suite.step(st, vs, k), state, jax.random.split(k_s, 200))[1]
+
+    for depth in (10.0, 100.0):
+        m = jax.jit(jax.vmap(lambda k: fixes(depth, k)))(jax.random.split(jax.random.PRNGKey(1), 32))
+        err = np.asarray(m.fix)[np.asarray(m.fix_new)] - np.array([0.0, 0.0, -depth])
+        np.testing.assert_allclose(err.std(axis=0), CFG.position_fix.noise + 0.01 * depth, rtol=0.05)
+    gps = SensorSuite(dataclasses.replace(CFG, position_fix=dataclasses.replace(CFG.position_fix, rate_hz=20.0, surface_only=True)), DT, G)
+
+    def gps_fixes(depth):
+        vs = VehicleState(position=jnp.array([0.0, 0.0, -depth]), quaternion=quat_from_euler(0.0, 0.0, 0.0),
+                          velocity=jnp.zeros(3), angular_velocity=jnp.zeros(3), actuators=jnp.zeros(6))
+        state, first = gps.init(jax.random.PRNGKey(0), gps.sample_params(jax.random.PRNGKey(1)), vs)
+        return first.fix_new, jax.lax.scan(lambda st, k: gps.step(st, vs, k), state, jax.random.split(jax.random.PRNGKey(2), 50))[1].fix_new
+
+    launch, deep = gps_fixes(5.0)
+    assert bool(launch) and not np.any(np.asarray(deep))
+    assert np.all(np.asarray(gps_fixes(0.2)[1]))
+    with pytest.raises(UserError, match="beacon"):
+        marinejax.make("Remus100-Autopilot", sensors={"position_fix": {"beacon": (0.0, float("nan"), 0.0)}})
+
+
 @pytest.mark.parametrize("section, key, value", [
     ("dvl", "noise_floor", -0.001), ("imu", "gyro_noise", float("nan")), ("depth", "rate_hz", 0.0),
     ("position_fix", "latency", float("inf")), ("dvl", "dropout", 1.0), ("latency", "observation", -1),

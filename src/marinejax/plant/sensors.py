@@ -110,16 +110,27 @@ class DvlConfig:
 
 @dataclasses.dataclass(frozen=True)
 class PositionFixConfig:
-    """Acoustic (USBL) position fix: world position with white noise, at `rate_hz`, `latency` late."""
+    """Acoustic (USBL) position fix: world position with white noise, at `rate_hz`, `latency` late.
+
+    An acoustic fix worsens with the slant range to its beacon (`range_noise`: std per axis grows by
+    this fraction of the distance to `beacon`, m, world); a GPS fix exists only at the surface
+    (`surface_only`: fixes only while the vehicle is shallower than `surface_depth` m; the
+    episode's first fix, the launch position, is always given)."""
 
     ideal: bool = False
     noise: float = 0.05  # m, std per axis
     rate_hz: float = 2.0
     latency: float = 0.3  # s: a fix describes the position this long before it arrives
+    range_noise: float = 0.0  # std per axis per m of slant range to the beacon
+    beacon: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m, world
+    surface_only: bool = False
+    surface_depth: float = 0.5  # m
 
     def __post_init__(self):
         check_fields("sensors.position_fix", self)
         _check_rate("position_fix", self.rate_hz)
+        if len(self.beacon) != 3 or not all(math.isfinite(float(v)) for v in self.beacon):
+            raise UserError(f"config 'sensors.position_fix.beacon' must be 3 finite numbers (m, world), got {self.beacon!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -330,8 +341,14 @@ class SensorSuite:
         # position fix, of the position fix_delay steps ago
         fix, fix_new = vs.position, jnp.ones((), bool)
         if not c.position_fix.ideal:
+            pf = c.position_fix
             fix_new = update[2]
-            fix = jnp.where(fix_new, positions[-1] + jax.random.normal(k[9], (3,)) * c.position_fix.noise * s, last.fix)
+            if pf.surface_only and not first:
+                fix_new = fix_new & (positions[-1][2] > -pf.surface_depth)
+            std = pf.noise
+            if pf.range_noise:
+                std = std + pf.range_noise * jnp.linalg.norm(positions[-1] - jnp.asarray(pf.beacon, jnp.float32))
+            fix = jnp.where(fix_new, positions[-1] + jax.random.normal(k[9], (3,)) * std * s, last.fix)
 
         m = Measurement(gyro=gyro, specific_force=specific_force, quaternion=quaternion, depth=depth, dvl=dvl,
                         dvl_new=dvl_new, fix=fix, fix_new=fix_new)
