@@ -89,6 +89,7 @@ def test_numpy_policy_closes_the_loop_outside_jit(tmp_path, shipped):
 @pytest.mark.parametrize("args, message", [
     (["--format", "tflite"], "invalid choice: 'tflite'"),
     (["/no/such/run", "--format", "npz"], "no such run directory or checkpoint: /no/such/run"),
+    (["--format", "npz", "--out", "/proc/marinejax/policy.npz"], "cannot write /proc/marinejax/policy.npz"),
 ])
 def test_bad_export_input_is_one_line(tmp_path, args, message):
     argv = ["export", ENV, *args] if args[0].startswith("--") else ["export", *args]

@@ -257,6 +257,37 @@ def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     return bench_main(rest)
 
 
+def _list(args: argparse.Namespace) -> int:
+    """What exists: vehicles (with kind and actuators), tasks (with the kinds they are for), envs,
+    classical controllers and shipped policies."""
+    from marinejax.controllers import CONTROLLERS
+    from marinejax.envs import list_envs
+    from marinejax.envs.registry import list_tasks
+    from marinejax.train.checkpoints import shipped_policies
+    from marinejax.vehicle import list_vehicles, load_vehicle, vehicle_kind
+
+    what = args.what
+    if what in ("all", "vehicles"):
+        print("vehicles (marinejax validate --vehicle NAME):")
+        for name in list_vehicles():
+            v = load_vehicle(name)
+            print(f"  {name:<20} {vehicle_kind(name):<8} {v.num_actuators} actuators: {', '.join(v.actuator_names)}")
+    if what in ("all", "tasks"):
+        print("tasks (<Vehicle>-<Task>; each also <Task>Disturbed):")
+        for task, kinds in list_tasks().items():
+            if not task.endswith("Disturbed"):
+                print(f"  {task:<24} for {', '.join(kinds)}")
+    if what in ("all", "envs"):
+        print("envs (marinejax train NAME):")
+        for name in list_envs():
+            print(f"  {name}")
+    if what in ("all", "controllers"):
+        print(f"classical controllers (marinejax eval ENV --controller NAME): {', '.join(CONTROLLERS)}")
+    if what in ("all", "policies"):
+        print(f"shipped policies (marinejax eval NAME): {', '.join(shipped_policies()) or 'none'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="marinejax", description="Underwater vehicles in JAX + MuJoCo MJX.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -324,6 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
     idf.add_argument("--window", type=float, default=1.0, help="seconds per multiple-shooting window (default 1)")
     idf.add_argument("--fit-thruster-gain", action="store_true", help="also fit the thruster gain (not separable from the masses; see the docs)")
 
+    ls = sub.add_parser("list", parents=[common], help="what exists: vehicles, tasks, envs, controllers, shipped policies")
+    ls.add_argument("what", nargs="?", default="all", choices=["all", "vehicles", "tasks", "envs", "controllers", "policies"])
+
     bench = sub.add_parser("bench", add_help=False, parents=[common],
                            help="benchmarks: `marinejax bench physics|envs|training|clients [flags]` (-h for their flags)")
     bench.add_argument("what", choices=["physics", "envs", "training", "clients"])
@@ -351,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
             return _excite(args)
         if args.command == "identify":
             return _identify(args)
+        if args.command == "list":
+            return _list(args)
         return _bench(args, rest)
     except UserError as err:  # anything else is a bug: let its traceback show
         print(f"marinejax {args.command}: error: {err}", file=sys.stderr)

@@ -165,5 +165,8 @@ def export_policy(path: Path | str, fmt: str = "onnx", out: Path | None = None, 
         raise UserError(f"unknown export format {fmt!r}; valid: {list(FORMATS)}")
     weights = policy_weights(path, which)
     out = Path(out) if out else Path(f"{weights.metadata['env']}-policy.{fmt}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    return save_npz(weights, out) if fmt == "npz" else save_onnx(weights, out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        return save_npz(weights, out) if fmt == "npz" else save_onnx(weights, out)
+    except OSError as err:  # a read-only or special directory, a full disk: the user's path
+        raise UserError(f"cannot write {out}: {err.strerror or err}") from None

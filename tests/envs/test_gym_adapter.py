@@ -282,6 +282,10 @@ def test_same_step_autoreset_returns_the_new_episode_and_the_final_observation(s
     same = gymnasium.make_vec(ID, num_envs=N, episode_length=LENGTH, autoreset_mode="same_step")
     nxt = MarineJaxVectorEnv(NAME, num_envs=N, episode_length=LENGTH)
     assert same.autoreset_mode == gymnasium.vector.AutoresetMode.SAME_STEP == same.metadata["autoreset_mode"]
+    # the enum member, as Gymnasium documents it and as the error message offers (its value is "SameStep")
+    by_enum = gymnasium.make_vec(ID, num_envs=N, episode_length=LENGTH, autoreset_mode=gymnasium.vector.AutoresetMode.SAME_STEP)
+    assert by_enum.autoreset_mode == gymnasium.vector.AutoresetMode.SAME_STEP
+    by_enum.close()
     assert nxt.autoreset_mode == gymnasium.vector.AutoresetMode.NEXT_STEP
     actions = random_actions(2 * LENGTH + 2, seed=3)
     obs_s, _ = same.reset(seed=7)

@@ -216,3 +216,16 @@ def test_key_values_take_json_style_booleans_and_python_literals():
 
     values = parse_key_values(["a=true", "b=False", "c=0.5", "d=(1, 2)", "e=ou", "f=FALSE"], "--env")
     assert values == {"a": True, "b": False, "c": 0.5, "d": (1, 2), "e": "ou", "f": False}
+
+
+def test_list_shows_what_exists_and_eval_offers_every_controller():
+    proc = marinejax("list")
+    assert proc.returncode == 0, proc.stderr
+    for expected in ("remus100_four_fin", "torpedo", "WaypointFollowing", "Remus100-CircleFollowingDisturbed",
+                     "autopilot, los", "BlueROV2Heavy-StationKeeping"):
+        assert expected in proc.stdout
+    from marinejax.cli import build_parser
+    from marinejax.controllers import CONTROLLERS
+
+    ev = build_parser()._subparsers._group_actions[0].choices["eval"]
+    assert [a for a in ev._actions if a.dest == "controller"][0].choices == list(CONTROLLERS)

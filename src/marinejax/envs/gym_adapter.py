@@ -361,7 +361,9 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         _check_render_mode(render_mode)
         if int(num_envs) < 1:
             raise UserError(f"num_envs must be >= 1, got {num_envs}")
-        mode = getattr(autoreset_mode, "value", autoreset_mode)
+        # the enum member itself, or our names of its values ("SameStep" is SAME_STEP's value)
+        by_enum = {enum: name for name, enum in AUTORESET_MODES.items()}
+        mode = by_enum.get(autoreset_mode, autoreset_mode) if isinstance(autoreset_mode, gymnasium.vector.AutoresetMode) else autoreset_mode
         if mode not in AUTORESET_MODES:
             raise UserError(f"autoreset_mode={autoreset_mode!r} is not supported; valid: {list(AUTORESET_MODES)} "
                              "(or the gymnasium.vector.AutoresetMode members NEXT_STEP, SAME_STEP)")

@@ -95,6 +95,11 @@ def _check_kind(task: str, vehicle: str) -> None:
         raise UserError(f"task {task!r} is for vehicles of kind {list(kinds)}; {vehicle!r} is a {vehicle_kind(vehicle)!r}")
 
 
+def list_tasks() -> dict[str, tuple[str, ...]]:
+    """Registered task names (with their Disturbed variants) → the vehicle kinds they are for."""
+    return {name: spec.vehicle_kinds for name, spec in _TASKS.items()}
+
+
 def list_envs() -> list[str]:
     """All registered env names: every vehicle × every task for its kind, then the user-registered ones."""
     kinds = {v: vehicle_kind(v) for v in list_vehicles()}
