@@ -10,6 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 TINY = [
@@ -64,6 +65,19 @@ def test_train_writes_a_complete_run_directory(run_dir):
     assert summary["status"] == "finished" and summary["evaluation"]["episodes"] == 4
     video = summary["evaluation"].get("video")
     assert video and Path(video).stat().st_size > 10_000, summary["evaluation"].get("video_error")
+    # every evaluation as TensorBoard scalars, the same values as metrics.jsonl
+    from tensorboardX.proto import event_pb2
+
+    events = b"".join(p.read_bytes() for p in (run_dir / "tensorboard").glob("events.out.tfevents.*"))
+    scalars = []
+    while events:  # TFRecord: length (8 bytes), its CRC (4), the event, its CRC (4)
+        n = int.from_bytes(events[:8], "little")
+        event = event_pb2.Event.FromString(events[12 : 12 + n])
+        events = events[16 + n :]
+        scalars += [(event.step, v.tag, v.simple_value) for v in event.summary.value]
+    logged = sorted((step, value) for step, tag, value in scalars if tag == "eval/episode_window_error")
+    assert [step for step, _ in logged] == [r["step"] for r in records]
+    np.testing.assert_allclose([v for _, v in logged], [r["eval/episode_window_error"] for r in records], rtol=1e-6)
 
 
 @pytest.mark.slow

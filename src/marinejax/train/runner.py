@@ -7,6 +7,7 @@ Run directory layout:
   best.json          the evaluated checkpoint with the lowest evaluation error so far
   curve.png          learning curve (return and position error vs env steps and wall time)
   summary.json       written when training ends (or is interrupted)
+  tensorboard/       every evaluation's metrics as TensorBoard scalars (`tensorboard --logdir runs`)
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
 from marinejax.train.curves import WINDOW_ERROR
+
+TENSORBOARD = "tensorboard"  # the run directory's TensorBoard event files
 from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
 
 
@@ -140,6 +143,11 @@ def train(
     best_path = run_dir / BEST
     best = json.loads(best_path.read_text()) if resume and best_path.exists() else None
 
+    from tensorboardX import SummaryWriter  # a dependency of brax
+
+    # a resumed run drops the events after its checkpoint, as metrics.jsonl does
+    board = SummaryWriter(str(run_dir / TENSORBOARD), purge_step=steps_done if resume else None)
+
     def progress(step: int, metrics: dict[str, Any]) -> None:
         if step == 0 and steps_done > 0:
             return  # the resumed policy was already evaluated at this step
@@ -147,6 +155,10 @@ def train(
         records.append(record)
         with (run_dir / "metrics.jsonl").open("a") as f:
             f.write(json.dumps(record) + "\n")
+        for key, value in record.items():
+            if key != "step":
+                board.add_scalar(key, value, record["step"])
+        board.flush()
         nonlocal best
         err = record.get(WINDOW_ERROR)
         if err is not None and record["step"] > 0 and (best is None or err < best["window_error"]):
@@ -197,6 +209,8 @@ def train(
         status = "interrupted"
     except _TargetReached:
         status = "target reached"
+    finally:
+        board.close()
     summary = {
         "status": status,
         "env": config.env,
