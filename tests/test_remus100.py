@@ -22,6 +22,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import marinejax as mj
+from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.validation import FOUR_FIN_REFERENCE, REMUS100_REFERENCE, torpedo_manoeuvres
 
@@ -336,3 +337,21 @@ def test_videos_turn_the_fins_with_their_deflection():
         np.testing.assert_array_equal(back, still)
     finally:
         renderer.close()
+
+
+def test_a_malformed_fin_or_propeller_names_its_group_and_setting(tmp_path):
+    from marinejax.vehicle import model_dir
+
+    base = (model_dir() / "remus100.xml").read_text()
+    cases = {
+        "fin angle": (base.replace('"marinejax:rudder:max_angle" data="0.2617993877991494"', '"marinejax:rudder:max_angle" data="3"'),
+                      r"rudder.*max_angle"),
+        "fin lift": (base.replace('"marinejax:stern:lift_slope" data="0.7"', '"marinejax:stern:lift_slope" data="-0.7"'), r"stern.*lift_slope"),
+        "propeller": (base.replace('<numeric name="marinejax:propeller:diameter" data="0.14"/>', ""), r"propeller.*diameter"),
+        "fin site": (base.replace('<site name="stern1"', '<site name="sternX"'), "stern1..sternN"),
+    }
+    for what, (text, match) in cases.items():
+        path = tmp_path / f"{what.replace(' ', '_')}.xml"
+        path.write_text(text)
+        with pytest.raises(UserError, match=match):
+            mj.load_vehicle(str(path))

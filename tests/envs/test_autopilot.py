@@ -118,3 +118,12 @@ def test_a_weaker_rudder_turns_the_vehicle_more_slowly():
 
     strong, half = yaw_rate(nominal), yaw_rate(weak)
     assert strong < -0.02 and 0.35 < half / strong < 0.65  # positive rudder turns to starboard (negative yaw rate)
+
+
+def test_commands_beyond_the_range_are_clipped_and_a_non_finite_one_ends_the_episode(env):
+    state = env.reset(jax.random.PRNGKey(0))
+    over = env.step(state, jnp.array([5.0, -7.0, 3.0]))
+    at = env.step(state, jnp.array([1.0, -1.0, 1.0]))
+    np.testing.assert_array_equal(np.asarray(over.obs), np.asarray(at.obs))
+    bad = env.step(state, jnp.array([0.0, jnp.nan, 0.5]))
+    assert float(bad.done) == 1.0 and float(bad.metrics["nonfinite"]) == 1.0 and np.all(np.isfinite(np.asarray(bad.obs)))
