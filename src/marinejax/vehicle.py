@@ -9,6 +9,7 @@ position and axis. Adding a vehicle means adding one file; no code change.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from importlib import resources
 from pathlib import Path
 
@@ -42,16 +43,32 @@ def list_vehicles() -> list[str]:
     return sorted(p.stem for p in model_dir().glob("*.xml"))
 
 
+@functools.lru_cache(maxsize=64)
+def _custom(path: str, mtime_ns: int) -> tuple[dict[str, str], dict[str, list[float] | str]]:
+    """(texts, numerics) of an MJCF file's <custom> section, by name; parsed once per file version."""
+    import xml.etree.ElementTree as ElementTree
+
+    root = ElementTree.parse(path).getroot()
+    texts = {t.get("name", ""): t.get("data", "") for t in root.iter("text")}
+    numerics = {}
+    for n in root.iter("numeric"):
+        try:
+            numerics[n.get("name", "")] = [float(v) for v in n.get("data", "").split()]
+        except ValueError:
+            numerics[n.get("name", "")] = n.get("data", "")  # reported by whoever reads it
+    return texts, numerics
+
+
+def _custom_of(vehicle: str) -> tuple[dict[str, str], dict[str, list[float] | str]]:
+    path = model_dir() / f"{vehicle}.xml"
+    return _custom(str(path), path.stat().st_mtime_ns)
+
+
 def env_name_prefix(vehicle: str) -> str:
     """The prefix of vehicle `vehicle`'s env names (`<prefix>-<Task>`): the MJCF's custom text
     `marinejax:env_name`, else the file stem in CamelCase (my_rov → MyRov). Reads the XML only."""
-    import xml.etree.ElementTree as ElementTree
-
-    path = model_dir() / f"{vehicle}.xml"
-    for text in ElementTree.parse(path).getroot().iter("text"):
-        if text.get("name") == _PREFIX + "env_name" and text.get("data"):
-            return text.get("data")
-    return "".join(part[:1].upper() + part[1:] for part in vehicle.split("_"))
+    name = _custom_of(vehicle)[0].get(_PREFIX + "env_name")
+    return name or "".join(part[:1].upper() + part[1:] for part in vehicle.split("_"))
 
 
 VEHICLE_KINDS = ("rov", "torpedo")  # rov: hovers on thrusters; torpedo: one propeller and fins, cannot hover
@@ -60,33 +77,22 @@ VEHICLE_KINDS = ("rov", "torpedo")  # rov: hovers on thrusters; torpedo: one pro
 def vehicle_kind(vehicle: str) -> str:
     """What kind of vehicle `vehicle` is (which tasks it can do): the MJCF's custom text
     `marinejax:vehicle_kind`, one of VEHICLE_KINDS, "rov" if absent. Reads the XML only."""
-    import xml.etree.ElementTree as ElementTree
-
-    path = model_dir() / f"{vehicle}.xml"
-    for text in ElementTree.parse(path).getroot().iter("text"):
-        if text.get("name") == _PREFIX + "vehicle_kind":
-            kind = text.get("data", "")
-            if kind not in VEHICLE_KINDS:
-                raise UserError(f"vehicle {vehicle!r} ({path.name}): unknown vehicle kind {kind!r}; valid: {list(VEHICLE_KINDS)}")
-            return kind
-    return "rov"
+    kind = _custom_of(vehicle)[0].get(_PREFIX + "vehicle_kind", "rov")
+    if kind not in VEHICLE_KINDS:
+        raise UserError(f"vehicle {vehicle!r} ({vehicle}.xml): unknown vehicle kind {kind!r}; valid: {list(VEHICLE_KINDS)}")
+    return kind
 
 
 def sensor_settings(vehicle: str) -> dict[str, float]:
     """The vehicle's own sensor parameters: the MJCF's numerics `marinejax:sensors:<sensor>.<field>`
     (e.g. `marinejax:sensors:dvl.rate_hz`), as overrides of the env config's `sensors` section, whose
     defaults (`marinejax.plant.sensors`) are a BlueROV2's. Reads the XML only."""
-    import xml.etree.ElementTree as ElementTree
-
-    path = model_dir() / f"{vehicle}.xml"
     prefix = _PREFIX + "sensors:"
     out = {}
-    for numeric in ElementTree.parse(path).getroot().iter("numeric"):
-        name = numeric.get("name", "")
+    for name, values in _custom_of(vehicle)[1].items():
         if name.startswith(prefix):
-            values = [float(v) for v in numeric.get("data", "").split()]
-            if len(values) != 1:
-                raise UserError(f"vehicle {vehicle!r} ({path.name}): '{name}' must hold one number, got {numeric.get('data')!r}")
+            if isinstance(values, str) or len(values) != 1:
+                raise UserError(f"vehicle {vehicle!r} ({vehicle}.xml): '{name}' must hold one number, got {values!r}")
             out[name[len(prefix):]] = values[0]
     return out
 

@@ -33,7 +33,9 @@ def test_tasks_go_to_the_vehicles_of_their_kind():
     torpedo_tasks = ["Autopilot", "WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing"]
     assert [n for n in marinejax.list_envs() if n.startswith("Remus100-")] == [
         f"Remus100-{t}{variant}" for t in torpedo_tasks for variant in ("", "Disturbed")]
-    assert not [n for n in marinejax.list_envs() if ("Autopilot" in n or "Following" in n) and not n.startswith("Remus100-")]
+    assert [n for n in marinejax.list_envs() if n.startswith("Remus100FourFin-")] == [
+        f"Remus100FourFin-{t}{variant}" for t in torpedo_tasks for variant in ("", "Disturbed")]
+    assert not [n for n in marinejax.list_envs() if ("Autopilot" in n or "Following" in n) and not n.startswith("Remus100")]
     with pytest.raises(UserError, match="unknown env 'Remus100-StationKeeping'"):
         marinejax.make("Remus100-StationKeeping")
     with pytest.raises(UserError, match="for vehicles of kind \\['rov'\\]; 'remus100' is a 'torpedo'"):
