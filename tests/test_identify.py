@@ -14,7 +14,8 @@ import pytest
 
 import marinejax
 from marinejax.errors import UserError
-from marinejax.identify import _SCALE, Identifier, Log, PARAMETER_NAMES, _flatten, excitation, prediction_error, read_log, simulate_log, write_log
+from marinejax.identify import (_SCALE, Identifier, Log, PARAMETER_NAMES, _flatten, excitation, prediction_error, read_log, save_param_set,
+                                simulate_log, write_log)
 from marinejax.plant import Plant, PlantConfig
 
 
@@ -168,3 +169,21 @@ def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(t
     assert np.all(np.isfinite(np.asarray(state.obs)))
     bad = run("identify", "missing.csv", "--vehicle", "bluerov2_heavy")
     assert bad.returncode == 2 and "missing.csv" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_a_covariance_that_cannot_be_computed_is_reported_and_the_fit_still_written(tmp_path, monkeypatch):
+    """numpy's SVD can fail on an ill-conditioned information matrix (it did on a Wu 2018 log): the
+    fit keeps its values, says why it has no uncertainty, and writes its parameter set."""
+    plant = Plant("bluerov2_heavy", PlantConfig())
+    log = simulate_log(plant, perturbed(plant), excitation(plant, duration=80.0, seed=0)[:200], seed=2)
+
+    def no_svd(*args, **kwargs):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr(np.linalg, "pinv", no_svd)
+    result = Identifier(plant, log).fit()
+    assert "no uncertainty" in result.warning and "SVD did not converge" in result.warning
+    assert np.all(np.isfinite(result.values)) and np.all(np.isnan(result.std[result.fitted]))
+    data = json.loads(save_param_set(tmp_path / "fit.json", "bluerov2_heavy", result, source="test").read_text())
+    assert all(entry["std"] is None for name, entry in data["fit"].items() if result.fitted[list(result.names).index(name)])

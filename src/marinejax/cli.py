@@ -232,6 +232,8 @@ def _identify(args: argparse.Namespace) -> int:
           "fitting (the first iteration compiles) ...")
     result = ident.fit(progress=print)
     print(f"cost (mean squared residual / noise^2): {result.cost_before:.4g} -> {result.cost_after:.4g} in {result.seconds:.0f} s")
+    if result.warning:
+        print(f"warning: {result.warning}; the values below are the fit's last iterate")
     print(f"{'parameter':24s} {'default':>10s} {'fitted':>10s} {'std':>9s}")
     for name, x0, v, sd, det, fit in zip(result.names, result.initial, result.values, result.std, result.determined, result.fitted):
         note = "held (not fitted)" if not fit else ("" if det else "not determined by this log")

@@ -249,6 +249,7 @@ class FitResult:
     cost_before: float  # mean squared normalised residual
     cost_after: float
     seconds: float
+    warning: str = ""  # why the fit or its uncertainty is incomplete (a singular system), else ""
 
 
 class Identifier:
@@ -381,10 +382,14 @@ class Identifier:
             a_act, e_act = a_mat[np.ix_(active, active)], e_mat[:, active]
             improvement = 0.0
             while lam <= 1e8:
-                b_inv = np.linalg.inv(b_mat * (1 + lam * np.eye(8)))
-                reduced = a_act + lam * np.diag(np.diag(a_act) + 1e-9) - np.einsum("wij,wjk,wlk->il", e_act, b_inv, e_act)
-                step = np.zeros_like(z)
-                step[active] = -np.linalg.solve(reduced, g[active] - np.einsum("wij,wjk,wk->i", e_act, b_inv, gs))
+                try:
+                    b_inv = np.linalg.inv(b_mat * (1 + lam * np.eye(8)))
+                    reduced = a_act + lam * np.diag(np.diag(a_act) + 1e-9) - np.einsum("wij,wjk,wlk->il", e_act, b_inv, e_act)
+                    step = np.zeros_like(z)
+                    step[active] = -np.linalg.solve(reduced, g[active] - np.einsum("wij,wjk,wk->i", e_act, b_inv, gs))
+                except np.linalg.LinAlgError:  # singular at this damping: damp more
+                    lam *= 4
+                    continue
                 z_new = np.maximum(z + step, lower)
                 offset_new = offset - np.einsum("wij,wj->wi", b_inv, gs + np.einsum("wij,i->wj", e_mat, z_new - z))
                 cost_new = evaluate(z_new, offset_new)
@@ -398,16 +403,21 @@ class Identifier:
             if lam > 1e8 or improvement < 1e-6 * cost:
                 break
         # covariance of the parameters, the starts eliminated: σ² (Schur complement)⁻¹
-        a_mat, _, b_mat, _, e_mat = normal_equations(z, offset)
-        e_free = e_mat[:, free]
-        info = a_mat[np.ix_(free, free)] - np.einsum("wij,wjk,wlk->il", e_free, np.linalg.inv(b_mat), e_free)
+        warning = ""
         std_z = np.zeros(len(z))
-        std_z[free] = np.sqrt(np.maximum(np.diag(np.linalg.pinv(info) * cost), 0))
+        try:
+            a_mat, _, b_mat, _, e_mat = normal_equations(z, offset)
+            e_free = e_mat[:, free]
+            info = a_mat[np.ix_(free, free)] - np.einsum("wij,wjk,wlk->il", e_free, np.linalg.inv(b_mat), e_free)
+            std_z[free] = np.sqrt(np.maximum(np.diag(np.linalg.pinv(info) * cost), 0))
+        except (np.linalg.LinAlgError, FloatingPointError) as err:  # the values stand; their uncertainty is unknown
+            std_z[free] = np.nan
+            warning = f"no uncertainty: the covariance at the fitted values could not be computed ({err})"
         values = self.x0 + z * _SCALE
         std = std_z * _SCALE
         return FitResult(params=_unflatten(self.base, jnp.asarray(values, jnp.float32)), names=PARAMETER_NAMES,
                          initial=self.x0, values=values, std=std, determined=std < 0.1 * np.maximum(np.abs(values), _SCALE),
-                         fitted=free.copy(), cost_before=cost0, cost_after=cost, seconds=_time.perf_counter() - t0)
+                         fitted=free.copy(), cost_before=cost0, cost_after=cost, seconds=_time.perf_counter() - t0, warning=warning)
 
 
 def simulate_log(plant: Plant, params: PlantParams, commands: np.ndarray, seed: int = 0, noise: bool = True,
@@ -466,7 +476,7 @@ def save_param_set(path: Path | str, vehicle: str, result: FitResult, source: st
         "fluid_density": float(p.hydro.fluid_density), "center_of_buoyancy": np.asarray(p.hydro.center_of_buoyancy).tolist(),
         "mass": float(p.mass), "inertia": np.asarray(p.inertia).tolist(),
         "thruster_gain": float(np.mean(np.asarray(p.actuators[0].gain))), "thruster_time_constant": float(p.actuators[0].time_constant),
-        "fit": {n: {"value": float(v), "std": float(s), "determined": bool(d)}
+        "fit": {n: {"value": float(v), "std": float(s) if np.isfinite(s) else None, "determined": bool(d)}
                 for n, v, s, d in zip(result.names, result.values, result.std, result.determined)},
     }
     path = Path(path)
