@@ -6,6 +6,13 @@ and defines its observation (`observe`) and reward terms (`reward_terms`). The p
 errors are the base's (`errors`), from `target_position` and the task's yaw. Everything here is
 pure and jit/vmap-able; names and sizes are resolved at construction.
 
+One step (`_transition`), in order: the action is clipped to [−1, 1] and, in sensor mode, delayed
+(`_delay_action`); the plant advances its actuators and physics; the task updates its own state
+(`advance_task`); in sensor mode the sensors measure and the estimator updates (`_sense`); the task
+observes (`observe`, plus the integral and privileged parts: `_observation`), delayed in sensor
+mode (`_delay_observation`); the task's reward terms and errors are computed; `_termination` ends
+the episode beyond `max_distance` or on a non-finite state and makes the metrics.
+
 State.pipeline_state is the `PlantState` (MJX data, thruster lag, ocean current). State.info holds
 all episode randomness, so a full reset re-draws it:
   rng, time (s since episode start), task (the target or trajectory), params (`PlantParams`: the
@@ -265,43 +272,64 @@ class MarineEnv(Env):
         return state.replace(pipeline_state=ps, obs=obs, reward=reward, done=done, metrics=metrics, info={**state.info, **info})
 
     def _transition(self, pipeline_state: PlantState, info: dict, action: jax.Array):
-        """One control step: (plant state, observation, reward, done, metrics, info)."""
-        cfg = self.config
+        """One control step, in the order it happens: (plant state, observation, reward, done, metrics, info)."""
         info = dict(info)
         rng, k_plant = jax.random.split(info["rng"])
-        action = jnp.clip(action, -1.0, 1.0)
-        applied = action
         if self._sensor_mode:
             rng, k_sensors = jax.random.split(rng)
-            buffer = jnp.concatenate([action[None], info["action_buffer"][:-1]])
-            info["action_buffer"] = buffer
-            applied = buffer[info["sensors"].params.action_latency]
-        ps, finite = self.plant.step(info["params"], pipeline_state, applied, k_plant)
-        info.update(rng=rng, time=info["time"] + cfg.control_dt)
+        action = jnp.clip(action, -1.0, 1.0)
+        applied, info = self._delay_action(info, action)  # actuation latency (sensor mode)
+        ps, finite = self.plant.step(info["params"], pipeline_state, applied, k_plant)  # actuators and physics
+        info.update(rng=rng, time=info["time"] + self.config.control_dt)
         vs = self.plant.vehicle_state(ps)
-        info["task"] = self.advance_task(info["task"], vs)
+        info["task"] = self.advance_task(info["task"], vs)  # the task's own state (a path's closest point)
         if self._sensor_mode:
-            suite = self.plant.sensors
-            info["sensors"], m = suite.step(info["sensors"], vs, k_sensors)
-            info["estimator"] = estimator_update(suite, info["estimator"], m)
-        obs = self._observation(vs, info, action, ps, integrate=True)
-        if self._sensor_mode:
-            buffer = jnp.concatenate([self._policy_part(obs)[None], info["observation_buffer"][:-1]])
-            info["observation_buffer"] = buffer
-            delayed = buffer[info["sensors"].params.observation_latency]
-            obs = {**obs, "state": delayed} if isinstance(obs, dict) else delayed
+            info = self._sense(info, vs, k_sensors)  # sensors, then the vehicle's estimator
+        obs, info = self._delay_observation(info, self._observation(vs, info, action, ps, integrate=True))
         terms, errors = self.reward_terms(vs, info, action), self.errors(vs, info)
         info["last_action"] = action
+        done, metrics = self._termination(terms, errors, finite, info["time"])
+        reward = sum(v for k, v in metrics.items() if k.startswith("reward/")) * finite
+        # a step that went non-finite reports zeros, never NaN: it ends the episode (metrics["nonfinite"])
+        metrics = {k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in metrics.items()}
+        obs = jax.tree.map(lambda o: jnp.where(finite, o, 0.0), obs)
+        return ps, obs, reward, done, metrics, info
+
+    # --- the parts of a step --------------------------------------------------------------
+    def _delay_action(self, info: dict, action: jnp.ndarray) -> tuple[jnp.ndarray, dict]:
+        """The action that reaches the actuators now: in sensor mode the one of
+        `sensors.latency.action` steps ago (a buffer in info), else `action`."""
+        if not self._sensor_mode:
+            return action, info
+        buffer = jnp.concatenate([action[None], info["action_buffer"][:-1]])
+        return buffer[info["sensors"].params.action_latency], {**info, "action_buffer": buffer}
+
+    def _sense(self, info: dict, vs: VehicleState, rng: jax.Array) -> dict:
+        """Sensor mode: the sensors measure the exact state `vs`; the estimator takes the measurement."""
+        suite = self.plant.sensors
+        sensors, m = suite.step(info["sensors"], vs, rng)
+        return {**info, "sensors": sensors, "estimator": estimator_update(suite, info["estimator"], m)}
+
+    def _delay_observation(self, info: dict, obs):
+        """The observation the policy sees now: in sensor mode the one of `sensors.latency.observation`
+        steps ago (the critic's privileged part stays current), else `obs`."""
+        if not self._sensor_mode:
+            return obs, info
+        buffer = jnp.concatenate([self._policy_part(obs)[None], info["observation_buffer"][:-1]])
+        delayed = buffer[info["sensors"].params.observation_latency]
+        return ({**obs, "state": delayed} if isinstance(obs, dict) else delayed), {**info, "observation_buffer": buffer}
+
+    def _termination(self, terms: dict, errors: dict, finite: jnp.ndarray, time: jnp.ndarray) -> tuple[jnp.ndarray, dict]:
+        """done (beyond `max_distance` or non-finite) and the step's metrics: weighted reward terms,
+        errors, flags and the window error (what an episode's evaluation statistic sums)."""
+        cfg = self.config
         out = errors["position_error"] > cfg.max_distance
         nonfinite = 1.0 - finite.astype(jnp.float32)
         done = jnp.maximum(out.astype(jnp.float32), nonfinite)
-        new = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
-        in_window = self.error_window(info["time"]).astype(jnp.float32) / self._window_steps
-        new["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
-        reward = sum(v for k, v in new.items() if k.startswith("reward/")) * finite
-        new = {k: jnp.where(finite, v, 0.0) if k.startswith("reward/") else v for k, v in new.items()}
-        obs = jax.tree.map(lambda o: jnp.where(finite, o, 0.0), obs)
-        return ps, obs, reward, done, new, info
+        metrics = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
+        in_window = self.error_window(time).astype(jnp.float32) / self._window_steps
+        metrics["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
+        return done, metrics
 
     # --- errors, observation and reward pieces shared by the tasks -------------------------
     def errors(self, vs: VehicleState, info: dict) -> dict[str, jnp.ndarray]:
