@@ -127,3 +127,17 @@ def test_commands_beyond_the_range_are_clipped_and_a_non_finite_one_ends_the_epi
     np.testing.assert_array_equal(np.asarray(over.obs), np.asarray(at.obs))
     bad = env.step(state, jnp.array([0.0, jnp.nan, 0.5]))
     assert float(bad.done) == 1.0 and float(bad.metrics["nonfinite"]) == 1.0 and np.all(np.isfinite(np.asarray(bad.obs)))
+
+
+def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
+    """Below full_manoeuvre_speed U_f the depth step shrinks by (U/U_f)^4 and the heading step by (U/U_f)^2."""
+    c = env.config
+    tasks = jax.vmap(env._sample_task)(jax.random.split(jax.random.PRNGKey(3), 2000))
+    speed = np.asarray(tasks.speed[:, 1])
+    u = np.clip(speed / c.full_manoeuvre_speed, 0, 1)
+    step = np.abs(np.diff(np.asarray(tasks.depth), axis=1))[:, 0]
+    turn = np.abs(np.diff(np.asarray(tasks.heading), axis=1))[:, 0]
+    assert np.all(step <= c.depth_step * u**4 + 1e-4) and np.all(turn <= c.heading_step * u**2 + 1e-5)
+    slow, fast = speed < 0.6, speed >= 1.0
+    assert step[slow].max() < 0.15 * c.depth_step and step[fast].max() > 0.9 * c.depth_step
+    assert turn[slow].max() < 0.37 * c.heading_step and turn[fast].max() > 0.9 * c.heading_step

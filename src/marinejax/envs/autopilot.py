@@ -1,11 +1,18 @@
 """Autopilot, for vehicles that cannot hover (torpedo AUVs): hold a commanded depth, heading and
 speed, with new set-points drawn during each episode.
 
-Episode: `segments` segments of `segment_duration` s; each draws a depth, heading and speed
-set-point: depth within ±`depth_step` m of the previous one (kept in `depth_range`), heading within
-±`heading_step` rad of the previous one, speed uniform in `speed_range` (m/s). The vehicle starts
-at the first set-point's depth ± `start_depth_error`, on a heading within ±`start_heading_error` of
-it, moving forward at a speed in `speed_range`, its propeller turning accordingly.
+Episode: `segments` segments of `segment_duration` s; each draws a speed set-point uniform in
+`speed_range` (m/s), then a depth within ±`depth_step` m of the previous one (kept in `depth_range`)
+and a heading within ±`heading_step` rad of the previous one. The vehicle starts at the first
+set-point's depth ± `start_depth_error`, on a heading within ±`start_heading_error` of it, moving
+forward at a speed in `speed_range`, its propeller turning accordingly.
+
+Only what the vehicle can reach at the commanded speed U is asked of it: below
+`full_manoeuvre_speed` U_f the depth changes (steps and the start's error) shrink by (U/U_f)^4 and
+the heading changes by (U/U_f)^2. A torpedo's fins lose authority with U² while its hydrostatic
+pitch stiffness stays, so its reachable pitch, and with it its climb rate (∝ U sin θ), fall steeply
+with speed; its turning circle stays, so its turn rate falls with U (the REMUS 100 at 0.6 m/s
+holds about 3° of pitch, and turns 180° in about two minutes at 0.5 m/s).
 
 Observation (body frame FLU unless stated), size 17 + 2 × number of actions:
   [0]     depth error, set-point z − z (m, world z up; positive: rise), clipped to ±`depth_clip`
@@ -47,6 +54,7 @@ class AutopilotConfig(CruisingConfig):
     segment_duration: float = 60.0  # s per set-point: a 180° turn takes the REMUS 23 s at full speed, 70 s at 0.5 m/s
     episode_length: int = 1200  # = segments × segment_duration / control_dt
     settled: float = 10.0  # s: the evaluation window is the last `settled` s of each segment
+    full_manoeuvre_speed: float = 1.0  # m/s: from this speed on, the full depth and heading steps (module docstring)
     depth_range: tuple[float, float] = (-30.0, -5.0)  # m, world z of the depth set-points
     depth_step: float = 10.0  # m, largest change of the depth set-point
     heading_step: float = math.pi  # rad, largest change of the heading set-point
@@ -63,7 +71,7 @@ class AutopilotConfig(CruisingConfig):
         super().__post_init__()
         check_range("depth_range", self.depth_range)
         check_range("speed_range", self.speed_range, low=0.0)
-        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip"):
+        for name in ("segment_duration", "settled", "depth_step", "heading_step", "depth_clip", "full_manoeuvre_speed"):
             if not getattr(self, name) > 0:
                 raise UserError(f"config '{name}' must be > 0, got {getattr(self, name)}")
         if self.segments < 1:
@@ -95,13 +103,19 @@ class Autopilot(CruisingEnv):
     def _sample_task(self, rng):
         c = self.config
         k = jax.random.split(rng, 4)
-        depth0 = jax.random.uniform(k[0], minval=c.depth_range[0], maxval=c.depth_range[1])
-        steps = jax.random.uniform(k[1], (c.segments - 1,), minval=-c.depth_step, maxval=c.depth_step)
-        depth = jnp.clip(depth0 + jnp.concatenate([jnp.zeros(1), jnp.cumsum(steps)]), c.depth_range[0], c.depth_range[1])
-        turns = jax.random.uniform(k[2], (c.segments,), minval=-c.heading_step, maxval=c.heading_step)
-        heading = jnp.cumsum(turns.at[0].set(turns[0] * jnp.pi / c.heading_step))  # the first: any heading
         speed = jax.random.uniform(k[3], (c.segments,), minval=c.speed_range[0], maxval=c.speed_range[1])
+        depth_reach, heading_reach = self._reach(speed)
+        depth0 = jax.random.uniform(k[0], minval=c.depth_range[0], maxval=c.depth_range[1])
+        steps = jax.random.uniform(k[1], (c.segments - 1,), minval=-c.depth_step, maxval=c.depth_step) * depth_reach[1:]
+        depth = jnp.clip(depth0 + jnp.concatenate([jnp.zeros(1), jnp.cumsum(steps)]), c.depth_range[0], c.depth_range[1])
+        raw = jax.random.uniform(k[2], (c.segments,), minval=-c.heading_step, maxval=c.heading_step)
+        heading = jnp.cumsum((raw * heading_reach).at[0].set(raw[0] * jnp.pi / c.heading_step))  # the first: any heading
         return SetPoints(depth=depth, heading=heading, speed=speed, yaw=heading[0])
+
+    def _reach(self, speed):
+        """The fractions (depth, heading) of the full set-point changes asked at commanded speed(s) (m/s)."""
+        u = jnp.clip(speed / self.config.full_manoeuvre_speed, 0.0, 1.0)
+        return u**4, u**2
 
     def set_point(self, info, upcoming: bool = False):
         """(depth m, heading rad, speed m/s) of the step just taken (errors and reward), or with
@@ -128,8 +142,9 @@ class Autopilot(CruisingEnv):
     def _initial_pose(self, rng, task: SetPoints) -> VehicleState:
         c = self.config
         k = jax.random.split(rng, 3)
-        depth = task.depth[0] + jax.random.uniform(k[0], minval=-c.start_depth_error, maxval=c.start_depth_error)
-        yaw = task.heading[0] + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
+        depth_reach, heading_reach = self._reach(task.speed[0])
+        depth = task.depth[0] + jax.random.uniform(k[0], minval=-c.start_depth_error, maxval=c.start_depth_error) * depth_reach
+        yaw = task.heading[0] + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error) * heading_reach
         speed = jax.random.uniform(k[2], minval=c.speed_range[0], maxval=c.speed_range[1])
         return self.cruising_state(jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), (0.0, 0.0, yaw), speed)
 
