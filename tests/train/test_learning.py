@@ -27,7 +27,7 @@ def test_short_station_keeping_training_lowers_the_position_error(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("env_name", sorted(shipped_policies()))
 def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
-    """Every shipped policy (both vehicles, four tasks each, and their disturbed variants)."""
+    """Every shipped policy (both ROVs, four tasks each, and their disturbed variants; the REMUS's waypoint following)."""
     run = shipped_policies()[env_name]
     recorded = json.loads((run / "eval.json").read_text())
     result = evaluate_run(env_name, out_dir=tmp_path, episodes=recorded["episodes"], seed=recorded["seed"], video=False)
