@@ -7,7 +7,7 @@ from the previous one, so it never jumps to another part of the path). The vehic
 path's start point, up to `start_offset` m off it sideways and half that vertically, on the path's
 heading within ±`start_heading_error` rad, moving forward at the commanded speed.
 
-Observation (body frame FLU unless stated), size 3·m + 16 + 2 × number of actions,
+Observation (body frame FLU unless stated), size 3·m + 17 + 2 × number of actions,
 m = `num_preview_points`:
   [0:3]          closest point of the path minus position, m (the cross-track error vector)
   [3:3+3m]       points of the path `preview_spacing`, 2·`preview_spacing`, … m beyond it, minus position, m
