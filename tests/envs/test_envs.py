@@ -341,8 +341,12 @@ def test_window_error_sums_to_the_evaluation_statistic(name, max_distance):
     assert float(np.sum(metrics["window_error"][1][: first_done + 1])) >= env.config.max_distance
 
 
-@pytest.mark.parametrize("name", ["BlueROV2-StationKeeping", "BlueROV2Heavy-LemniscateTracking", "Remus100-Autopilot",
-                                  "Remus100FourFin-WaypointFollowing"])
+# one env per registered task (its first vehicle of the task's kind)
+_ONE_PER_TASK = sorted({min(n for n in E.list_envs() if n.split("-", 1)[1] == task)
+                        for task in {n.split("-", 1)[1] for n in E.list_envs()} if not task.endswith("Disturbed")})
+
+
+@pytest.mark.parametrize("name", _ONE_PER_TASK)
 def test_the_observation_layout_names_every_component_with_its_unit_and_frame(name):
     env = E.make(name)
     layout = env.observation_layout()
