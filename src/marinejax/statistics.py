@@ -16,6 +16,7 @@ import numpy as np
 from marinejax.control import Controller, policy_controller, rollout
 from marinejax.envs.base import MarineEnv
 
+
 def rollout_policy(env: MarineEnv, policy, episodes: int, seed: int = 0) -> dict[str, np.ndarray]:
     """`rollout_controller` of a policy (observation → action)."""
     return rollout_controller(env, policy_controller(policy), episodes, seed)
@@ -25,8 +26,8 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     """Run `episodes` full episodes (episode_length steps, no early reset) in one jitted call.
 
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
-    error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T) each of the task's other errors (`MarineEnv.error_names`:
-    heading_error_deg, and e.g. speed_error).
+    error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T)
+    each of the task's other errors (`MarineEnv.error_names`: heading_error_deg, and e.g. speed_error).
     """
     steps = env.config.episode_length
     others = [name for name in env.error_names if name != "position_error"]
