@@ -29,9 +29,9 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
 from marinejax.train.curves import WINDOW_ERROR
+from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
 
 TENSORBOARD = "tensorboard"  # the run directory's TensorBoard event files
-from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
 
 
 
