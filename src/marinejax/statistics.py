@@ -50,7 +50,8 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
 
 def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
     """Statistics over episodes of the task's window error; success below the task's threshold; the
-    mean over the window of each other error (`<name>_mean`, e.g. heading_error_mean_deg)."""
+    mean over the window of each other error (`<name>_mean`, e.g. heading_error_mean_deg) and its unit
+    (`units`: name → unit, `MarineEnv.error_units`)."""
     success_m = env.success_threshold_m
     mask = np.asarray(env.error_window(result["time"]))
     per_episode = result["error"][:, mask].mean(axis=1)
@@ -66,6 +67,8 @@ def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
         "success_rate": float(np.mean((per_episode < success_m) & ~ended)),
         "success_threshold_m": success_m,
         "terminated_episodes": int(ended.sum()),
+        "units": {name: env.error_units[error] for error, name in zip(env.error_names, map(_mean_name, env.error_names))
+                  if name in others},
     }
 
 

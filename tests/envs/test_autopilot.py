@@ -79,7 +79,7 @@ def test_the_vehicle_starts_near_its_first_set_point_moving_forward(env, run):
 def test_it_is_a_torpedo_task_and_bad_settings_are_refused():
     assert "BlueROV2-Autopilot" not in mj.list_envs() and "Remus100-AutopilotDisturbed" in mj.list_envs()
     with pytest.raises(UserError, match="integral_time_constant"):
-        mj.make("Remus100-Autopilot", integral_time_constant=2.0)
+        mj.make("Remus100-Autopilot", integral_time_constant=-1.0)
     with pytest.raises(UserError, match="settled"):
         mj.make("Remus100-Autopilot", settled=70.0)
 

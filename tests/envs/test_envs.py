@@ -257,14 +257,17 @@ def test_brax_registry_builds_our_envs():
     assert env.action_size == 6 and env.config.episode_length == 20
 
 
-@pytest.mark.parametrize("name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking"])
+@pytest.mark.parametrize("name", ["BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-CircleTracking", "Remus100-CircleFollowing",
+                                  "Remus100-Autopilot"])
 def test_integral_observation_is_the_leaky_clipped_error_integral(name):
     """info['integral'] follows I ← exp(−dt/T) I + dt clip(e, ±c) of the true error, and the last four
-    observation components are its body-frame position part and its heading part."""
+    observation components are its body-frame position part and its heading part. The error is the
+    position error to the target (station, reference point, the path's closest point) and the heading
+    error; the autopilot's is the depth error alone (as world z) and the heading error to its set-points."""
     from marinejax.envs.base import heading_error
     from marinejax.frames import quat_to_mat
 
-    env = E.make(name)
+    env = E.make(name, integral_time_constant=2.0)
     c = env.config
     step = jax.jit(env.step)
     state = jax.jit(env.reset)(jax.random.PRNGKey(3))
@@ -274,8 +277,12 @@ def test_integral_observation_is_the_leaky_clipped_error_integral(name):
     for _ in range(40):  # 2 s: long enough for the clip (start errors up to 2 m) and the leak to matter
         state = step(state, action)
         vs = env.plant.vehicle_state(state.pipeline_state)
-        error = np.concatenate([np.asarray(env.target_position(state.info) - vs.position),
-                                [float(heading_error(vs.quaternion, state.info["task"].yaw))]])
+        if name.endswith("Autopilot"):
+            depth, heading, _ = env.set_point(state.info)
+            error = np.array([0.0, 0.0, float(depth - vs.position[2]), float(heading_error(vs.quaternion, heading))])
+        else:
+            error = np.concatenate([np.asarray(env.target_position(state.info) - vs.position),
+                                    [float(heading_error(vs.quaternion, state.info["task"].yaw))]])
         expected = leak * expected + c.control_dt * np.clip(error, -c.integral_error_clip, c.integral_error_clip)
     np.testing.assert_allclose(np.asarray(state.info["integral"]), expected, rtol=1e-4, atol=1e-6)
     rot = np.asarray(quat_to_mat(vs.quaternion))

@@ -121,4 +121,4 @@ def test_path_following_is_for_torpedoes_and_bad_settings_are_refused():
     with pytest.raises(UserError, match="unknown path kind 'square'"):
         paths.check_kind("square")
     with pytest.raises(UserError, match="integral_time_constant"):
-        mj.make("Remus100-CircleFollowing", integral_time_constant=2.0)
+        mj.make("Remus100-CircleFollowing", integral_time_constant=-1.0)

@@ -14,7 +14,7 @@ pitch stiffness stays, so its reachable pitch, and with it its climb rate (∝ U
 with speed; its turning circle stays, so its turn rate falls with U (the REMUS 100 at 0.6 m/s
 holds about 3° of pitch, and turns 180° in about two minutes at 0.5 m/s).
 
-Observation (body frame FLU unless stated), size 17 + 2 × number of actions:
+Observation (body frame FLU unless stated), size 17 + 2 × number of actions (+ 4 with the integral):
   [0]     depth error, set-point z − z (m, world z up; positive: rise), clipped to ±`depth_clip`
   [1:3]   sin, cos of the heading error (set-point heading − heading)
   [3]     speed error, set-point speed − surge speed (m/s)
@@ -25,7 +25,10 @@ Observation (body frame FLU unless stated), size 17 + 2 × number of actions:
   [14:16] sin, cos of the heading set-point (world yaw)
   [16]    speed set-point, m/s
   [17:17+n] actuator states, each scaled to [−1, 1] by its command range
-  [17+n:] last action
+  [17+n:17+2n] last action
+  then the base's leaky integral (`base`; absent if integral_time_constant = 0) of the depth error,
+  as a world-z vector in the body frame, and of the heading error (rad s): it removes the steady
+  offsets (seed 4 of PPO went from 1.48 m and 10.9° to 0.08 m and 1.4° with it, README).
 The statistics: `position_error` is the depth error (m), with `heading_error_deg` and
 `speed_error` (m/s); the evaluation window is the last `settled` s of each segment.
 """
@@ -134,6 +137,12 @@ class Autopilot(CruisingEnv):
     def target_position(self, info) -> jnp.ndarray:
         """Only the depth is a target (m, world z; x and y are 0): for plots of depth against time."""
         return jnp.zeros(3).at[2].set(self.set_point(info)[0])
+
+    def integral_error(self, vs: VehicleState, info) -> jnp.ndarray:
+        """The depth error as world z (m; x and y 0: there is no position target) and the heading error
+        (rad), to the set-points of the step just taken."""
+        depth, heading, _ = self.set_point(info)
+        return jnp.stack([0.0, 0.0, depth - vs.position[2], heading_error(vs.quaternion, heading)])
 
     def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
         depth, heading, speed = self.set_point(info)

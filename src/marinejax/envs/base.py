@@ -48,6 +48,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import types
 from typing import Any
 
 import jax
@@ -179,6 +180,8 @@ class MarineEnv(Env):
     config_class = EnvConfig
     vehicle_kinds = ("rov",)  # the kinds of vehicle (`marinejax.vehicle.VEHICLE_KINDS`) this task is for
     error_window_description = "every step"  # what `error_window` selects, for reports
+    # the unit of each of the task's errors (`errors`), for reports; a task with other errors adds them
+    error_units = types.MappingProxyType({"position_error": "m", "heading_error_deg": "°", "speed_error": "m/s"})
     success_threshold_m = 0.1  # m: an episode succeeds when its mean error over the window is below this
 
     def __init__(self, vehicle: str | Vehicle, config: EnvConfig):
@@ -414,12 +417,14 @@ class MarineEnv(Env):
         c = self.config
         if c.integral_time_constant == 0:
             return integral
-        error = jnp.concatenate([
-            self.target_position(info) - vs.position,
-            heading_error(vs.quaternion, info["task"].yaw)[None],
-        ])
+        error = self.integral_error(vs, info)
         leak = math.exp(-c.control_dt / c.integral_time_constant)
         return leak * integral + c.control_dt * jnp.clip(error, -c.integral_error_clip, c.integral_error_clip)
+
+    def integral_error(self, vs: VehicleState, info: dict) -> jnp.ndarray:
+        """The error (4,) that the observed integral accumulates: the world-frame position error (m)
+        and the heading error (rad), to `target_position` and the task's `yaw`."""
+        return jnp.concatenate([self.target_position(info) - vs.position, heading_error(vs.quaternion, info["task"].yaw)[None]])
 
     def _metrics(self, terms, errors, nonfinite, out) -> dict[str, jnp.ndarray]:
         weights = self.config.reward

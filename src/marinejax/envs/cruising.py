@@ -23,20 +23,16 @@ from marinejax.plant import CurrentConfig
 
 @dataclasses.dataclass(frozen=True)
 class CruisingConfig(EnvConfig):
-    """What the torpedo tasks share: an AUV autopilot's rate, the start's shaft speed, no integral
-    (they observe their set-points or path instead), currents of up to 0.5 m/s when on."""
+    """What the torpedo tasks share: an AUV autopilot's rate, the start's shaft speed, currents of up
+    to 0.5 m/s when on."""
 
     control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
     substeps: int = 2  # two 50 ms physics steps per action
     top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed, linear in speed
-    integral_time_constant: float = 0.0  # the base's position integral does not apply
     current: CurrentConfig = CurrentConfig(speed=(0.0, 0.5))  # m/s, used when current.mode is not "off" (Disturbed)
 
     def __post_init__(self):
         super().__post_init__()
-        if self.integral_time_constant != 0:
-            raise UserError(f"config 'integral_time_constant' must be 0 for {type(self).__name__} (its tasks observe their "
-                            "set-points or path instead)")
         if not self.top_speed > 0:
             raise UserError(f"config 'top_speed' must be > 0, got {self.top_speed}")
 

@@ -5,9 +5,12 @@ Unlike tracking, nothing moves along the path by itself: the task's state is the
 the vehicle's closest point on the path, updated after every step by projection (`paths.project`,
 from the previous one, so it never jumps to another part of the path). The vehicle starts near the
 path's start point, up to `start_offset` m off it sideways and half that vertically, on the path's
-heading within ±`start_heading_error` rad, moving forward at the commanded speed.
+heading within ±`start_heading_error` rad, moving forward at the commanded speed. The defaults
+(0.5 m, 0.1 rad) let it reach the path within the first `settle_time` s: at 1 m/s the REMUS 100
+turns at most 1/18 m/s² sideways (turning radius 18 m), and a bang-bang sideways move of y metres
+takes at least 2·sqrt(18·y) s, 6 s for 0.5 m but 12 s for 2 m.
 
-Observation (body frame FLU unless stated), size 3·m + 17 + 2 × number of actions,
+Observation (body frame FLU unless stated), size 3·m + 17 + 2 × number of actions (+ 4 with the integral),
 m = `num_preview_points`:
   [0:3]          closest point of the path minus position, m (the cross-track error vector)
   [3:3+3m]       points of the path `preview_spacing`, 2·`preview_spacing`, … m beyond it, minus position, m
@@ -17,7 +20,9 @@ m = `num_preview_points`:
   [3m+8:3m+11]   world up (0, 0, 1) in the body frame
   [3m+11:3m+14]  linear velocity, m/s
   [3m+14:3m+17]  angular velocity, rad/s
-  then the actuator states, each scaled to [−1, 1] by its command range, and the last action.
+  then the actuator states, each scaled to [−1, 1] by its command range, the last action and the
+  base's leaky integral of the cross-track error and heading error (`base`; absent if
+  integral_time_constant = 0), which removes the steady offset on curved paths.
 Errors: `position_error` is the cross-track distance (m, 3-D, to the closest point),
 `speed_error` |commanded − along-track speed| (m/s), `heading_error_deg` the angle between the
 vehicle's heading and the path's, in plan view. The evaluation window starts after `settle_time` s.
@@ -45,8 +50,8 @@ class PathFollowingConfig(CruisingConfig):
     episode_length: int = 600  # 60 s
     settle_time: float = 10.0  # s: the evaluation window starts after this
     max_distance: float = 10.0  # m off the path: the episode terminates beyond
-    start_offset: float = 2.0  # m, sideways (vertically: half)
-    start_heading_error: float = 0.3  # rad
+    start_offset: float = 0.5  # m, sideways (vertically: half)
+    start_heading_error: float = 0.1  # rad
     num_preview_points: int = 4
     preview_spacing: float = 5.0  # m along the path between observed points
     path: paths.PathConfig = paths.PathConfig()
