@@ -94,7 +94,7 @@ def _train(args: argparse.Namespace) -> int:
     console = make_console()
     target = _check_target(args.target_error)
     if args.resume:
-        if args.env_name or args.ppo or args.env or args.timesteps or args.run_dir or args.randomize:
+        if args.env_name or args.ppo or args.algo or args.algo_opts or args.env or args.timesteps or args.run_dir or args.randomize:
             raise UserError("--resume takes only the run directory: the run's own settings are reused")
         run_dir = Path(args.resume)
         if not (run_dir / "config.json").exists():
@@ -103,24 +103,25 @@ def _train(args: argparse.Namespace) -> int:
     else:
         if not args.env_name:
             raise UserError("name the env to train, e.g. `marinejax train BlueROV2Heavy-StationKeeping` (or --resume RUN_DIR)")
-        ppo = parse_key_values(args.ppo, "--ppo")
+        agent = parse_key_values(args.algo_opts, "--algo-opts")
         if args.timesteps is not None:
-            ppo["num_timesteps"] = args.timesteps
+            agent["num_timesteps"] = args.timesteps
         if args.seed is not None:
-            ppo["seed"] = args.seed
+            agent["seed"] = args.seed
         env_overrides = parse_key_values(args.env, "--env")
         if args.randomize:
             env_overrides["randomization.enabled"] = True
-        config = with_overrides(tuned_config(args.env_name), ppo=ppo, env=env_overrides)
+        config = with_overrides(tuned_config(args.env_name, args.algo or "ppo"), ppo=parse_key_values(args.ppo, "--ppo"),
+                                agent=agent, env=env_overrides)
         from marinejax.train.hyperparams import build_env
 
         build_env(config)  # validate the env overrides before creating a run directory
         run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{config.env}-{time.strftime('%Y%m%d-%H%M%S')}"
         if (run_dir / "config.json").exists():
             raise UserError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it")
-    devices = check_devices(args.devices, config.ppo)
-    console.print(f"[bold]marinejax train[/bold] {config.env} → {run_dir}  ({config.ppo.num_timesteps:,} env steps, "
-                  f"{config.ppo.num_envs} envs on {devices} {jax.default_backend()} device(s); compiling takes about a minute)")
+    devices = check_devices(args.devices, config.agent)
+    console.print(f"[bold]marinejax train[/bold] {config.env} → {run_dir}  ({config.algorithm.upper()}, "
+                  f"{config.agent.num_timesteps:,} env steps, {config.agent.num_envs} envs on {devices} {jax.default_backend()} device(s); compiling takes about a minute)")
     with TrainingProgress(console, config) as progress:
         try:
             summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
@@ -153,10 +154,9 @@ def _print_eval(console, result: dict[str, Any]) -> None:
         f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m) "
         f"{100 * result['success_rate']:.0f} %"
     )
-    # errors in degrees end in _deg; speeds are m/s, the others m
-    others = [f"{key[: -len('_mean_deg')].replace('_', ' ')} {value:.2f}°" if key.endswith("_mean_deg") else
-              f"{key[: -len('_mean')].replace('_', ' ')} {value:.4f} {'m/s' if 'speed' in key else 'm'}"
-              for key, value in result.items() if key.endswith(("_mean", "_mean_deg")) and not key.startswith("position_error")]
+    others = [f"{key.replace('_mean', '').removesuffix('_deg').replace('_', ' ')} "
+              + (f"{result[key]:.2f}°" if unit == "°" else f"{result[key]:.4f} {unit}")
+              for key, unit in result.get("units", {}).items()]
     if others:
         console.print(f"  mean over the window: {', '.join(others)}")
     if "checkpoint" in result:
@@ -306,6 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--seed", type=int, help="random seed")
     tr.add_argument("--target-error", type=float, metavar="METRES",
                     help="stop once the evaluation error (the task's window, as in `marinejax eval`) is at most this")
+    tr.add_argument("--algo", choices=["ppo", "sac"], help="training algorithm (default ppo)")
+    tr.add_argument("--algo-opts", action="append", metavar="KEY=VALUE",
+                    help="override a setting of the algorithm, e.g. --algo-opts learning_rate=1e-3 (PPOConfig, SACConfig)")
     tr.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting, e.g. --ppo learning_rate=1e-3")
     tr.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting, e.g. --env reward.effort=0.1")
     tr.add_argument("--devices", type=int, metavar="N",

@@ -7,7 +7,7 @@ inference function, or an ONNX model (for onnxruntime, TensorRT, ...).
     policy = load_numpy_policy("policy.npz")
     action = policy(observation)                           # (obs,) or (B, obs) float -> (action,) or (B, action)
 
-The exported function is the deterministic PPO policy of the checkpoint: the observation
+The exported function is the deterministic policy of the checkpoint (PPO or SAC): the observation
 normalized with the running statistics of training, (obs − mean) / std, an MLP with swish hidden
 layers, and tanh of the mean half of the last layer. Both files carry the same metadata (JSON in
 `metadata` of the npz, in the ONNX model's metadata_props): env, checkpoint, control period,
@@ -32,7 +32,7 @@ FORMATS = ("npz", "onnx")
 
 @dataclasses.dataclass(frozen=True)
 class PolicyWeights:
-    """A deterministic PPO policy as plain arrays (float32)."""
+    """A deterministic policy (PPO or SAC) as plain arrays (float32)."""
 
     mean: np.ndarray  # (obs,) observation mean of training
     std: np.ndarray  # (obs,) observation standard deviation of training
@@ -76,7 +76,7 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
         raise UserError(f"{config.env} was trained with a dict observation; export supports the flat 'state' observation only")
     normalizer, policy = params[0], params[1]["params"]
     layers = sorted(policy, key=lambda name: int(name.split("_")[-1]))
-    if not config.ppo.normalize_observations:
+    if not config.agent.normalize_observations:
         mean, std = np.zeros(env.observation_size, np.float32), np.ones(env.observation_size, np.float32)
     else:
         mean, std = np.asarray(normalizer.mean, np.float32), np.asarray(normalizer.std, np.float32)

@@ -104,6 +104,8 @@ def test_eval_loads_the_run_and_writes_summary_plot_video(run_dir, tmp_path):
     assert result["episodes"] == 3 and result["env_overrides"] == {"randomization.enabled": True, "current.mode": "constant"}
     assert 0 <= result["position_error_mean_m"] < 10 and (tmp_path / "paths.png").stat().st_size > 10_000
     assert "position error" in proc.stdout
+    assert result["units"] == {"heading_error_mean_deg": "°"}
+    assert re.search(r"mean over the window: heading error [0-9.]+°\n", proc.stdout), proc.stdout
     assert "best (lowest evaluation error during training)" in proc.stdout
     best = json.loads((run_dir / "best.json").read_text())
     assert result["checkpoint"].endswith(f"{best['step']:012d}")
@@ -142,6 +144,11 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "-1"], "expected a positive float, got '-1'"),
         (["bench", "training", "BlueROV2Heavy-StationKeeping", "--target-error", "inf"], "expected a positive float, got 'inf'"),
         (["bench", "training", "BlueROV2Heavy-StationKeeping", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--algo", "a2c"], "invalid choice: 'a2c'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--ppo", "learning_rate=1e-3"], "PPO settings"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--algo-opts", "unroll_length=5"], "unknown config key"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--algo-opts", "min_replay_size=5000000"], "'min_replay_size'"),
+        (["bench", "training", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--ppo", "seed=1"], "--ppo applies to --algo ppo"),
     ],
 )
 def test_user_mistakes_exit_2_with_one_line_and_no_traceback(args, message):
@@ -162,6 +169,39 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
             f.write_bytes(b"garbage")
     proc = marinejax("eval", str(run), "--checkpoint", "latest", "--no-video", "--episodes", "2", timeout=300)
     assert proc.returncode == 2 and "could not be read" in proc.stderr and "Traceback" not in proc.stderr
+
+
+SAC_TINY = ["--algo", "sac", "--timesteps", "2400", "--episodes", "2", "--no-video", "--env", "episode_length=20",
+            *[arg for opt in ("num_envs=8", "batch_size=32", "min_replay_size=400", "num_evals=3", "num_eval_envs=4", "hidden=(16,)")
+              for arg in ("--algo-opts", opt)]]
+
+
+def test_sac_trains_evaluates_and_exports_like_ppo(tmp_path):
+    """`--algo sac` writes the same run directory (its checkpoints, best.json, the final evaluation);
+    the export reproduces its deterministic policy; resuming is refused with the reason."""
+    import jax
+
+    from marinejax.export import load_numpy_policy
+    from marinejax.train.checkpoints import load_policy
+
+    run = tmp_path / "sac"
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(run), *SAC_TINY)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "(SAC, 2,400 env steps, 8 envs" in proc.stdout
+    config = json.loads((run / "config.json").read_text())
+    assert config["algorithm"] == "sac" and config["sac"]["hidden"] == [16] and "ppo" not in config
+    checkpoints = sorted(p.name for p in (run / "checkpoints").iterdir())
+    assert len(checkpoints) == 2 and all((run / "checkpoints" / c / "sac_network_config.json").exists() for c in checkpoints)
+    assert int(checkpoints[-1]) >= 2400 and json.loads((run / "summary.json").read_text())["evaluation"]["episodes"] == 2
+
+    out = tmp_path / "policy.npz"
+    assert marinejax("export", str(run), "--format", "npz", "--out", str(out)).returncode == 0
+    _, env, policy, _ = load_policy(run)
+    obs = np.random.default_rng(0).normal(size=(4, env.observation_size)).astype(np.float32)
+    np.testing.assert_allclose(load_numpy_policy(out)(obs), np.asarray(jax.vmap(policy)(obs)), atol=1e-5)
+
+    proc = marinejax("train", "--resume", str(run))  # Brax SAC cannot restore its checkpoints: said in one line
+    assert proc.returncode == 2 and "a SAC run cannot be resumed" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
 @pytest.mark.slow
@@ -241,5 +281,9 @@ def test_list_shows_what_exists_and_eval_offers_every_controller():
     from marinejax.cli import build_parser
     from marinejax.controllers import CONTROLLERS
 
+    from marinejax.train.hyperparams import ALGORITHMS
+
     ev = build_parser()._subparsers._group_actions[0].choices["eval"]
     assert [a for a in ev._actions if a.dest == "controller"][0].choices == list(CONTROLLERS)
+    tr = build_parser()._subparsers._group_actions[0].choices["train"]
+    assert [a for a in tr._actions if a.dest == "algo"][0].choices == list(ALGORITHMS)

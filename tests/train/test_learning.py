@@ -25,9 +25,29 @@ def test_short_station_keeping_training_lowers_the_position_error(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_name", sorted(shipped_policies()))
+def test_short_sac_training_lowers_the_position_error(tmp_path):
+    """SAC, 0.12 M env steps of its tuned settings (about 1.5 minutes here; the full 0.5 M reach a few
+    mm, README): the evaluation error falls far below the untrained policy's."""
+    config = with_overrides(tuned_config("BlueROV2Heavy-StationKeeping", "sac"), agent={"num_timesteps": 120_000, "num_evals": 2})
+    records = []
+    train(config, tmp_path / "run", on_eval=records.append)
+    untrained, trained = records[0]["eval/episode_window_error"], records[-1]["eval/episode_window_error"]
+    assert records[-1]["step"] >= 120_000
+    assert trained < 0.3 * untrained, (untrained, trained)
+
+
+# CI checks one shipped policy per task family and vehicle kind (each costs a compilation, about 20 s);
+# `pytest -m exhaustive` checks the others, as before shipping a policy or changing an env.
+_REPRESENTATIVE = {"BlueROV2Heavy-StationKeeping", "BlueROV2-StationKeepingDisturbed", "BlueROV2Heavy-LemniscateTracking",
+                   "Remus100-WaypointFollowing", "Remus100-Autopilot"}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_name", [name if name in _REPRESENTATIVE else pytest.param(name, marks=pytest.mark.exhaustive)
+                                      for name in sorted(shipped_policies())])
 def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
-    """Every shipped policy (both ROVs, four tasks each, and their disturbed variants; the REMUS's waypoint following)."""
+    """Every shipped policy (both ROVs, four tasks each, and their disturbed variants; the REMUS's
+    waypoint following and autopilot)."""
     run = shipped_policies()[env_name]
     recorded = json.loads((run / "eval.json").read_text())
     result = evaluate_run(env_name, out_dir=tmp_path, episodes=recorded["episodes"], seed=recorded["seed"], video=False)
@@ -37,13 +57,13 @@ def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [5, 6])
-def test_tuned_station_keeping_recipe_lands_on_held_out_seeds(seed, tmp_path):
-    """`marinejax train BlueROV2Heavy-StationKeeping --seed S` from scratch (about 3.5 minutes here)
-    reaches <= 2 cm mean error over the last second, on seeds outside the README's 0-4."""
+def test_tuned_station_keeping_recipe_lands_on_a_held_out_seed(tmp_path):
+    """`marinejax train BlueROV2Heavy-StationKeeping --seed 5` from scratch (about 3.5 minutes here)
+    reaches <= 2 cm mean error over the last second, on a seed outside the README's 0-4 (seed 6 too,
+    when this was written; one seed keeps CI's time)."""
     from marinejax.benchmarks.training import run_seed
 
-    row = run_seed("BlueROV2Heavy-StationKeeping", seed, tmp_path / "run", {}, {}, 0.02, 64, log=lambda _: None)
+    row = run_seed("BlueROV2Heavy-StationKeeping", 5, tmp_path / "run", {}, {}, 0.02, 64, log=lambda _: None)
     assert row["error_mean_m"] <= 0.02, row
     assert row["success_rate"] == 1.0, row
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -50,16 +51,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--target-error", type=positive(float), default=DEFAULT_TARGET_M,
                    help=f"error (m) for the time-to-target figures (default {DEFAULT_TARGET_M})")
     p.add_argument("--timesteps", type=positive(int), help="env steps per run (default: the tuned value)")
-    p.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting for every run")
+    p.add_argument("--algo", choices=["ppo", "sac"], default="ppo", help="training algorithm (default ppo)")
+    p.add_argument("--algo-opts", action="append", metavar="KEY=VALUE", help="override a setting of the algorithm for every run")
+    p.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting for every run (--algo ppo)")
     p.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for every run")
     p.add_argument("--episodes", type=positive(int), default=64, help="evaluation episodes per seed (default 64)")
     return p
 
 
-def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, target: float, episodes: int,
-             log=print, trace_cache: Path | None = None) -> dict[str, Any]:
-    """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `trace_cache`: as
-    `train`'s."""
+def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, target: float, episodes: int,
+             log=print, trace_cache: Path | None = None, algorithm: str = "ppo") -> dict[str, Any]:
+    """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `agent`: overrides
+    of the algorithm's settings; `trace_cache`: as `train`'s."""
     from marinejax.train.evaluate import evaluate_finished_run
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
     from marinejax.train.curves import WINDOW_ERROR
@@ -71,7 +74,11 @@ def run_seed(env_name: str, seed: int, run_dir: Path, ppo: dict, env: dict, targ
         log(f"{env_name} seed {seed}: finished earlier, reusing {run_dir}")
     else:
         resume = (run_dir / "config.json").exists()
-        config = load_train_config(run_dir) if resume else with_overrides(tuned_config(env_name), ppo={**ppo, "seed": seed}, env=env)
+        if resume and load_train_config(run_dir).algorithm == "sac":  # SAC runs cannot be resumed (`train.sac`)
+            log(f"{env_name} seed {seed}: an unfinished SAC run cannot be resumed; training it again in {run_dir}")
+            shutil.rmtree(run_dir)
+            resume = False
+        config = load_train_config(run_dir) if resume else with_overrides(tuned_config(env_name, algorithm), agent={**agent, "seed": seed}, env=env)
 
         def on_eval(r: dict) -> None:
             err = r.get(WINDOW_ERROR)
@@ -160,9 +167,12 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     if unknown:
         print(f"marinejax bench training: error: unknown env {unknown[0]!r}; valid: {list_envs()}", file=sys.stderr)
         return 2
-    ppo = parse_key_values(args.ppo, "--ppo")
+    if args.ppo and args.algo != "ppo":
+        print(f"marinejax bench training: error: --ppo applies to --algo ppo; use --algo-opts for {args.algo}", file=sys.stderr)
+        return 2
+    agent = {**parse_key_values(args.ppo, "--ppo"), **parse_key_values(args.algo_opts, "--algo-opts")}
     if args.timesteps:
-        ppo["num_timesteps"] = args.timesteps
+        agent["num_timesteps"] = args.timesteps
     env_overrides = parse_key_values(args.env, "--env")
     out_dir = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -174,8 +184,9 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     for env_name in args.envs:
         rows = []
         for seed in range(args.seeds):
-            row = run_seed(env_name, seed, out_dir / env_name / f"seed-{seed}", ppo, env_overrides,
-                           args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache)
+            row = run_seed(env_name, seed, out_dir / env_name / f"seed-{seed}", agent, env_overrides,
+                           args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache,
+                           algorithm=args.algo)
             print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m, success {100 * row['success_rate']:.0f} %, "
                   f"training {row['wall_time_s']:.0f} s", flush=True)
             rows.append(row)
@@ -199,7 +210,8 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
 
 def _write(out_dir: Path, info: dict, args: argparse.Namespace, rows: list[dict], summaries: list[dict]) -> None:
     settings = {"envs": args.envs, "seeds": args.seeds, "target_error_m": args.target_error, "timesteps": args.timesteps,
-                "ppo": args.ppo or [], "env": args.env or [], "episodes": args.episodes}
+                "algorithm": args.algo, "ppo": args.ppo or [], "algo_opts": args.algo_opts or [], "env": args.env or [],
+                "episodes": args.episodes}
     (out_dir / "results.json").write_text(json.dumps({"machine": info, "settings": settings, "envs": summaries,
                                                       "seeds": rows}, indent=2))
     with (out_dir / "results.csv").open("w", newline="") as f:

@@ -1,11 +1,13 @@
 """Checkpoints of a run directory: which one to use, and the trained policy they hold.
 
-A run directory keeps Brax PPO checkpoints in checkpoints/<env steps>/ and names the one with the
-lowest evaluation error in best.json; shipped policies are run directories inside the package.
+A run directory keeps its algorithm's Brax checkpoints (PPO or SAC) in checkpoints/<env steps>/ and
+names the one with the lowest evaluation error in best.json; shipped policies are run directories
+inside the package.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import warnings
@@ -13,10 +15,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import jax
-
 from marinejax.errors import UserError
-from marinejax.train.hyperparams import TrainConfig, build_env, load_train_config, network_factory
+from marinejax.train.hyperparams import ALGORITHMS, build_env, load_train_config
 
 CHECKPOINTS = "checkpoints"
 BEST = "best.json"
@@ -62,27 +62,26 @@ def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Pat
 
 
 def load_params(path: Path | str, env_overrides: dict[str, Any] | None = None, which: str = "best"):
-    """(train config, env, Brax PPO params (normalizer, policy, value), checkpoint dir) from a run,
-    a checkpoint or a shipped policy's env name; checks the env's sizes against the checkpoint's."""
-    from brax.training.agents.ppo import checkpoint as ppo_checkpoint
-
+    """(train config, env, the algorithm's Brax params (normalizer, policy[, value]), checkpoint dir)
+    from a run, a checkpoint or a shipped policy's env name; checks the env's sizes against the
+    checkpoint's."""
     run_dir, ckpt = resolve_checkpoint(path, which)
     try:
         config = load_train_config(run_dir)
     except (OSError, ValueError, KeyError, TypeError) as err:
         raise CheckpointError(f"cannot read {run_dir / 'config.json'}: {err}") from None
     if env_overrides:
-        config = TrainConfig(env=config.env, ppo=config.ppo, env_overrides={**config.env_overrides, **env_overrides})
+        config = dataclasses.replace(config, env_overrides={**config.env_overrides, **env_overrides})
     env = build_env(config)
     try:
-        net_config = json.loads((ckpt / "ppo_network_config.json").read_text())
+        net_config = json.loads((ckpt / config.module.NETWORK_CONFIG).read_text())
         absl = logging.getLogger("absl")
         level = absl.level
         with warnings.catch_warnings():  # orbax warns about sharding metadata of CPU checkpoints
             warnings.simplefilter("ignore")
             absl.setLevel(logging.ERROR)  # ... and logs them through absl: quiet for this load only
             try:
-                params = ppo_checkpoint.load(ckpt)
+                params = config.module.load(ckpt)
             finally:
                 absl.setLevel(level)
     except Exception as err:  # orbax raises many kinds of errors on damaged files
@@ -97,16 +96,13 @@ def load_params(path: Path | str, env_overrides: dict[str, Any] | None = None, w
 
 def load_policy(path: Path, env_overrides: dict[str, Any] | None = None, which: str = "best"):
     """(train config, env, deterministic policy fn obs -> action, checkpoint dir) from a run or checkpoint."""
-    from brax.training import types
-    from brax.training.acme import running_statistics
-    from brax.training.agents.ppo import networks as ppo_networks
-
     config, env, params, ckpt = load_params(path, env_overrides, which)
-    # Brax 0.14's checkpoint.load_policy cannot rebuild networks it saved itself; build it as ppo.train does.
-    normalize = running_statistics.normalize if config.ppo.normalize_observations else types.identity_observation_preprocessor
-    network = network_factory(config.ppo, env.observation_size)(env.observation_size, env.action_size, preprocess_observations_fn=normalize)
-    inference = ppo_networks.make_inference_fn(network)(params, deterministic=True)
-    return config, env, (lambda obs: inference(obs, jax.random.PRNGKey(0))[0]), ckpt
+    return config, env, config.module.policy(config.agent, env, params), ckpt
+
+
+def _complete(ckpt: Path) -> bool:
+    """Whether a checkpoint directory was written to the end (its network config comes last)."""
+    return any((ckpt / module.NETWORK_CONFIG).exists() for module in ALGORITHMS.values())
 
 
 def latest_checkpoint(run_dir: Path) -> Path | None:
@@ -114,7 +110,7 @@ def latest_checkpoint(run_dir: Path) -> Path | None:
     root = Path(run_dir) / CHECKPOINTS
     steps = sorted((p for p in root.glob("*") if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
     for p in reversed(steps):
-        if (p / "ppo_network_config.json").exists():
+        if _complete(p):
             return p
     return None
 
@@ -126,4 +122,4 @@ def best_checkpoint(run_dir: Path) -> Path | None:
     except (OSError, ValueError):
         return None
     path = Path(run_dir) / CHECKPOINTS / f"{int(best['step']):012d}"
-    return path if (path / "ppo_network_config.json").exists() else None
+    return path if _complete(path) else None

@@ -1,5 +1,5 @@
-"""PPO hyperparameters, kept apart from the env configs; tuned values per task; the env, network and
-saved config a training config stands for.
+"""Training settings, kept apart from the env configs: the algorithm (PPO or SAC, `ppo`/`sac`) and
+its settings, tuned values per task; the env, network and saved config a training config stands for.
 
 `tuned_config(env_name)` gives the settings the README's results come from; any field can be
 overridden (`with_overrides`), and a misspelled key is an error.
@@ -8,8 +8,8 @@ overridden (`with_overrides`), and a misspelled key is an error.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
+import types
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -17,57 +17,38 @@ from marinejax.config import apply_overrides
 from marinejax.envs.base import MarineEnv
 from marinejax.envs.registry import env_spec, make
 from marinejax.errors import UserError
+from marinejax.train import ppo, sac
 
 
-@dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    """Arguments of `brax.training.agents.ppo.train` (see its docstring), plus network sizes."""
-
-    num_timesteps: int = 3_000_000
-    num_envs: int = 256
-    unroll_length: int = 20
-    batch_size: int = 256
-    num_minibatches: int = 8
-    num_updates_per_batch: int = 4
-    learning_rate: float = 3e-4
-    entropy_cost: float = 1e-3
-    discounting: float = 0.97
-    gae_lambda: float = 0.95
-    clipping_epsilon: float = 0.2
-    reward_scaling: float = 1.0
-    max_grad_norm: float = 1.0
-    normalize_observations: bool = True
-    init_noise_std: float = 1.0  # initial exploration noise of the policy (pre-tanh std)
-    policy_hidden: tuple[int, ...] = dataclasses.field(default=(64, 64), metadata={"variable_length": True})
-    value_hidden: tuple[int, ...] = dataclasses.field(default=(64, 64), metadata={"variable_length": True})
-    num_evals: int = 20
-    num_eval_envs: int = 64
-    seed: int = 0
-
-    def __post_init__(self):
-        for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
-                     "num_updates_per_batch", "num_evals", "num_eval_envs"):
-            if getattr(self, name) < 1:
-                raise UserError(f"ppo '{name}' must be >= 1, got {getattr(self, name)}")
-        if (self.batch_size * self.num_minibatches) % self.num_envs:
-            raise UserError(
-                f"ppo batch_size * num_minibatches ({self.batch_size} * {self.num_minibatches}) must be a "
-                f"multiple of num_envs ({self.num_envs})"
-            )
-        for name in ("learning_rate", "discounting", "gae_lambda", "clipping_epsilon", "reward_scaling"):
-            if not getattr(self, name) > 0:
-                raise UserError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
-        if not (self.discounting < 1 and self.gae_lambda <= 1):
-            raise UserError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
+PPOConfig = ppo.Config
+SACConfig = sac.Config
+ALGORITHMS = types.MappingProxyType({"ppo": ppo, "sac": sac})  # name → module (`ppo` documents what each provides)
 
 
 @dataclasses.dataclass(frozen=True)
 class TrainConfig:
-    """What `marinejax train` runs: an env with config overrides, and PPO settings."""
+    """What `marinejax train` runs: an env with config overrides, and the settings of the algorithm
+    (`algorithm`: a key of ALGORITHMS; its settings are the field of that name)."""
 
     env: str
-    ppo: PPOConfig
+    ppo: PPOConfig = PPOConfig()
     env_overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    algorithm: str = "ppo"
+    sac: SACConfig = SACConfig()
+
+    def __post_init__(self):
+        if self.algorithm not in ALGORITHMS:
+            raise UserError(f"unknown algorithm {self.algorithm!r}; valid: {list(ALGORITHMS)}")
+
+    @property
+    def agent(self) -> PPOConfig | SACConfig:
+        """The settings of the algorithm that trains (num_timesteps, num_envs, seed, ...)."""
+        return getattr(self, self.algorithm)
+
+    @property
+    def module(self):
+        """The algorithm's module (`ppo` or `sac`)."""
+        return ALGORITHMS[self.algorithm]
 
 
 # Tuned on BlueROV2Heavy-StationKeeping on the 2-core CPU and judged over seeds 0-4 (README results).
@@ -79,6 +60,9 @@ _STATION = PPOConfig(
     num_timesteps=12_000_000, num_minibatches=4, unroll_length=10, learning_rate=1e-3, entropy_cost=1e-4,
     discounting=0.98, init_noise_std=0.5, num_evals=20,
 )
+# SAC, the same for every task: 0.5 M env steps (about 4 minutes on the 2-core CPU). On station
+# keeping seed 0 reached 5 mm after 0.23 M steps (README: seeds 0-4).
+_SAC = SACConfig(num_timesteps=500_000)
 _TRACKING = dataclasses.replace(_STATION, num_timesteps=4_000_000, num_evals=10)
 _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "StationKeeping": (_STATION, {}),
@@ -86,10 +70,11 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "HelixTracking": (_TRACKING, {}),
     "LemniscateTracking": (_TRACKING, {}),
 }
-# Torpedo path following (10 Hz, 60 s episodes): the station-keeping recipe, 12 M steps (about 4.5
-# minutes with its evaluations on the 2-core CPU); seed 0 reached 0.07 m on waypoints and 0.30 m on
-# circles (README: seeds 0-4).
-_TUNED.update({task: (_STATION, {}) for task in ("WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing")})
+# Torpedo path following (10 Hz, 60 s episodes): the station-keeping recipe for 8 M steps. On the
+# circle, seed 0 was at 0.04 m after 3.2 M steps and at best 0.034 m (with the cross-track integral
+# observed; without it, 0.50 m at 6.3 M steps). README: seeds 0-4.
+_PATH = dataclasses.replace(_STATION, num_timesteps=8_000_000, num_evals=16)
+_TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing")})
 # The torpedo autopilot (120 s episodes of two set-points): a 10 s horizon (γ 0.99 at 10 Hz) and
 # 20 M steps; at 10 M steps seed 0 reached 0.145 m depth, 2.1° heading and 0.03 m/s speed error and
 # was still improving (README: seeds 0-4).
@@ -109,35 +94,34 @@ _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 }
 
 
-def tuned_config(env_name: str) -> TrainConfig:
-    """The tuned training settings of env `env_name` (raises listing the registered envs if unknown):
-    its own recipe if it has one, else its task's; a task without tuned settings gets the
-    station-keeping recipe, the most demanding one."""
+def tuned_config(env_name: str, algorithm: str = "ppo") -> TrainConfig:
+    """The tuned training settings of env `env_name` (raises listing the registered envs if unknown)
+    for `algorithm`: with PPO its own recipe if it has one, else its task's; a task without tuned
+    settings gets the station-keeping recipe, the most demanding one. SAC: `_SAC`."""
     task = env_spec(env_name).task
-    ppo, env_overrides = _TUNED_ENVS.get(env_name) or _TUNED.get(task, (_STATION, {}))
-    return TrainConfig(env=env_name, ppo=ppo, env_overrides=dict(env_overrides))
+    if algorithm not in ALGORITHMS:
+        raise UserError(f"unknown algorithm {algorithm!r}; valid: {list(ALGORITHMS)}")
+    if algorithm == "sac":
+        return TrainConfig(env=env_name, algorithm="sac", sac=_SAC)
+    ppo_config, env_overrides = _TUNED_ENVS.get(env_name) or _TUNED.get(task, (_STATION, {}))
+    return TrainConfig(env=env_name, ppo=ppo_config, env_overrides=dict(env_overrides))
 
 
-def with_overrides(config: TrainConfig, ppo: Mapping[str, Any] | None = None, env: Mapping[str, Any] | None = None) -> TrainConfig:
-    """Validated copy: `ppo` keys are PPOConfig fields; `env` keys are env config keys (dotted or nested)."""
-    new_ppo = apply_overrides(config.ppo, ppo or {}, prefix="ppo.")
+def with_overrides(config: TrainConfig, ppo: Mapping[str, Any] | None = None, env: Mapping[str, Any] | None = None,
+                   agent: Mapping[str, Any] | None = None) -> TrainConfig:
+    """Validated copy: `agent` keys are fields of the training algorithm's settings (`ppo` keys of
+    PPOConfig's, for a PPO config only); `env` keys are env config keys (dotted or nested)."""
+    if ppo and config.algorithm != "ppo":
+        raise UserError(f"PPO settings ({sorted(ppo)}) given for a {config.algorithm} run; use the algorithm's options")
+    overrides = {**(ppo or {}), **(agent or {})}
+    new_agent = apply_overrides(config.agent, overrides, prefix=f"{config.algorithm}.")
     merged = {**config.env_overrides, **(env or {})}
-    return dataclasses.replace(config, ppo=new_ppo, env_overrides=merged)
+    return dataclasses.replace(config, **{config.algorithm: new_agent}, env_overrides=merged)
 
 
-def network_factory(ppo: PPOConfig, observation_size: int | Mapping | None = None) -> Callable:
-    """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
-    the policy reads "state" and the critic "privileged_state"."""
-    from brax.training.agents.ppo import networks as ppo_networks
-
-    keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
-    return functools.partial(
-        ppo_networks.make_ppo_networks,
-        policy_hidden_layer_sizes=tuple(ppo.policy_hidden),
-        value_hidden_layer_sizes=tuple(ppo.value_hidden),
-        init_noise_std=ppo.init_noise_std,
-        **keys,
-    )
+def network_factory(ppo_config: PPOConfig, observation_size: int | Mapping | None = None) -> Callable:
+    """Brax's PPO networks with our sizes (`ppo.network_factory`)."""
+    return ppo.network_factory(ppo_config, observation_size)
 
 
 def build_env(config: TrainConfig) -> MarineEnv:
@@ -148,6 +132,8 @@ def build_env(config: TrainConfig) -> MarineEnv:
 def load_train_config(run_dir: Path) -> TrainConfig:
     """The training config a run directory's config.json records."""
     data = json.loads((Path(run_dir) / "config.json").read_text())
-    ppo = data["ppo"]
-    ppo = PPOConfig(**{**ppo, "policy_hidden": tuple(ppo["policy_hidden"]), "value_hidden": tuple(ppo["value_hidden"])})
-    return TrainConfig(env=data["env"], ppo=ppo, env_overrides=data["env_overrides"])
+    algorithm = data.get("algorithm", "ppo")  # runs written before SAC have no "algorithm"
+    if algorithm not in ALGORITHMS:
+        raise UserError(f"{run_dir}: unknown algorithm {algorithm!r} in config.json; valid: {list(ALGORITHMS)}")
+    settings = ALGORITHMS[algorithm].Config.from_dict(data[algorithm])
+    return TrainConfig(env=data["env"], env_overrides=data["env_overrides"], algorithm=algorithm, **{algorithm: settings})

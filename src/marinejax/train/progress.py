@@ -23,7 +23,7 @@ class TrainingProgress:
     The live bar is used only when `console` is a terminal."""
 
     def __init__(self, console: Console, config: TrainConfig):
-        self.total = config.ppo.num_timesteps
+        self.total = config.agent.num_timesteps
         self.episode_length = None
         self.progress = Progress(
             TextColumn("[bold]{task.description}"),

@@ -1,9 +1,10 @@
-"""Run a PPO training into a run directory, with progress, metrics, checkpoints and resume.
+"""Run a training (PPO or SAC: `hyperparams.ALGORITHMS`) into a run directory, with progress,
+metrics, checkpoints and resume.
 
 Run directory layout:
-  config.json        the resolved env config, PPO settings, versions and machine
+  config.json        the resolved env config, the algorithm and its settings, versions and machine
   metrics.jsonl      one line per evaluation: env steps, wall time, evaluation metrics
-  checkpoints/<step> Brax PPO checkpoints (normalizer, policy, value params + network config)
+  checkpoints/<step> the algorithm's Brax checkpoints (params + network config)
   best.json          the evaluated checkpoint with the lowest evaluation error so far
   curve.png          learning curve (return and position error vs env steps and wall time)
   summary.json       written when training ends (or is interrupted)
@@ -29,14 +30,13 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
 from marinejax.train.curves import WINDOW_ERROR
-from marinejax.train.hyperparams import PPOConfig, TrainConfig, build_env, network_factory
+from marinejax.train.hyperparams import PPOConfig, SACConfig, TrainConfig, build_env
 
 TENSORBOARD = "tensorboard"  # the run directory's TensorBoard event files
 
 
-
 class _TargetReached(Exception):
-    """Raised from the progress callback to end ppo.train once the target error is met."""
+    """Raised from the progress callback to end the training once the target error is met."""
 
 
 def machine() -> dict[str, Any]:
@@ -46,15 +46,15 @@ def machine() -> dict[str, Any]:
             "jax": info["jax"], "python": info["python"]}
 
 
-def check_devices(devices: int | None, ppo: PPOConfig) -> int:
+def check_devices(devices: int | None, agent: PPOConfig | SACConfig) -> int:
     """The number of local devices to train on (None: all); raises ValueError naming the valid range."""
     available = jax.local_device_count()
     n = available if devices is None else devices
     if not 1 <= n <= available:
         raise UserError(f"devices must be between 1 and the {available} local device(s) "
                          f"({', '.join(str(d) for d in jax.local_devices())}), got {devices}")
-    if ppo.num_envs % n:
-        raise UserError(f"ppo num_envs ({ppo.num_envs}) must be a multiple of the number of devices ({n})")
+    if agent.num_envs % n:
+        raise UserError(f"num_envs ({agent.num_envs}) must be a multiple of the number of devices ({n})")
     return n
 
 
@@ -65,7 +65,8 @@ def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
         "env": config.env,
         "env_overrides": dict(config.env_overrides),
         "env_config": to_dict(env.config),
-        "ppo": dataclasses.asdict(config.ppo),
+        "algorithm": config.algorithm,
+        config.algorithm: dataclasses.asdict(config.agent),
         "observation_size": env.observation_size,
         "action_size": env.action_size,
         "versions": {p: version(p) for p in ("marinejax", "jax", "brax", "mujoco", "mujoco-mjx")},
@@ -99,20 +100,20 @@ def train(
     best.json. With `target_error` (m), the summary records when that error first met the target
     (env steps and wall seconds), and training stops there if `stop_at_target`.
 
-    `devices` local devices share the env batch (Brax PPO's pmap; gradients are averaged over them);
+    `devices` local devices share the env batch (Brax's pmap; gradients are averaged over them);
     None uses all of `jax.local_devices()`. `num_envs` must be a multiple of it.
 
     `trace_cache` (a folder) keeps the training env's traced reset and step between runs
     (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.
     """
-    from brax.training.agents.ppo import checkpoint as ppo_checkpoint
-    from brax.training.agents.ppo import train as ppo_train
-
     run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
-    ppo = config.ppo
-    devices = check_devices(devices, ppo)
+    agent, algorithm = config.agent, config.module
+    devices = check_devices(devices, agent)
     env = build_env(config)
     steps_done, elapsed_before, restore = 0, 0.0, None
+    if resume and config.algorithm == "sac":
+        raise UserError(f"{run_dir}: a SAC run cannot be resumed (Brax 0.14's SAC fails to restore its own checkpoints, "
+                        "and they hold neither the critics nor the replay buffer); its checkpoints still evaluate and export")
     if resume:
         ckpt = latest_checkpoint(run_dir)
         if ckpt is None:
@@ -126,17 +127,10 @@ def train(
     else:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, config, env)
-    remaining = ppo.num_timesteps - steps_done
+    remaining = agent.num_timesteps - steps_done
     if remaining <= 0:
         return json.loads((run_dir / "summary.json").read_text()) if (run_dir / "summary.json").exists() else {}
 
-    factory = network_factory(ppo, env.observation_size)
-    net_config = ppo_checkpoint.network_config(
-        observation_size=env.observation_size,
-        action_size=env.action_size,
-        normalize_observations=ppo.normalize_observations,
-        network_factory=factory,
-    )
     start = time.monotonic()
     records: list[dict[str, float]] = []
     reached: dict[str, float] = {}
@@ -171,40 +165,14 @@ def train(
             if stop_at_target:
                 raise _TargetReached
 
-    def save_params(step: int, make_policy, params) -> None:
-        if step > 0:
-            ppo_checkpoint.save(run_dir / CHECKPOINTS, steps_done + int(step), params, net_config)
+    def save_params(step: int, params) -> None:
+        algorithm.save(run_dir / CHECKPOINTS, steps_done + int(step), params, env, agent)
 
     status = "finished"
     try:
-        ppo_train.train(
-            environment=env,
-            num_timesteps=remaining,
-            episode_length=env.config.episode_length,
-            wrap_env_fn=functools.partial(wrap_for_training, trace_cache=trace_cache),
-            num_envs=ppo.num_envs,
-            unroll_length=ppo.unroll_length,
-            batch_size=ppo.batch_size,
-            num_minibatches=ppo.num_minibatches,
-            num_updates_per_batch=ppo.num_updates_per_batch,
-            learning_rate=ppo.learning_rate,
-            entropy_cost=ppo.entropy_cost,
-            discounting=ppo.discounting,
-            gae_lambda=ppo.gae_lambda,
-            clipping_epsilon=ppo.clipping_epsilon,
-            reward_scaling=ppo.reward_scaling,
-            max_grad_norm=ppo.max_grad_norm,
-            normalize_observations=ppo.normalize_observations,
-            network_factory=factory,
-            num_evals=ppo.num_evals,
-            num_eval_envs=ppo.num_eval_envs,
-            deterministic_eval=True,
-            seed=ppo.seed + steps_done,
-            restore_checkpoint_path=str(restore) if restore else None,
-            progress_fn=progress,
-            policy_params_fn=save_params,
-            max_devices_per_host=devices,
-        )
+        algorithm.run(env, agent, num_timesteps=remaining, seed=agent.seed + steps_done,
+                      wrap_env_fn=functools.partial(wrap_for_training, trace_cache=trace_cache), progress_fn=progress,
+                      save_fn=save_params, restore=restore, devices=devices, checkpoint_dir=run_dir / CHECKPOINTS)
     except KeyboardInterrupt:
         status = "interrupted"
     except _TargetReached:
