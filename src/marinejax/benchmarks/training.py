@@ -66,6 +66,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
     from marinejax.train.evaluate import evaluate_finished_run
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
     from marinejax.train.curves import WINDOW_ERROR
+    from marinejax.train.checkpoints import latest_checkpoint
     from marinejax.train.runner import train
 
     summary_path = run_dir / "summary.json"
@@ -74,8 +75,9 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         log(f"{env_name} seed {seed}: finished earlier, reusing {run_dir}")
     else:
         resume = (run_dir / "config.json").exists()
-        if resume and load_train_config(run_dir).algorithm == "sac":  # SAC runs cannot be resumed (`train.sac`)
-            log(f"{env_name} seed {seed}: an unfinished SAC run cannot be resumed; training it again in {run_dir}")
+        # nothing to resume: stopped before its first checkpoint, or SAC (Brax cannot restore it, `train.sac`)
+        if resume and (latest_checkpoint(run_dir) is None or load_train_config(run_dir).algorithm == "sac"):
+            log(f"{env_name} seed {seed}: the unfinished run cannot be resumed; training it again in {run_dir}")
             shutil.rmtree(run_dir)
             resume = False
         config = load_train_config(run_dir) if resume else with_overrides(tuned_config(env_name, algorithm), agent={**agent, "seed": seed}, env=env)

@@ -474,6 +474,11 @@ class MarineEnv(Env):
         window the evaluation statistics average over. Tasks override it with their own."""
         return time >= 0.0
 
+    def after(self, time, t0: float):
+        """For `error_window`s: time > t0 (s), with half a control step of margin, since the env
+        accumulates time in float32."""
+        return time > t0 + 0.5 * self.config.control_dt
+
     def target_position(self, info: dict) -> jnp.ndarray:
         """Where the vehicle should be now (m, world): the station or the reference point at info['time']."""
         raise NotImplementedError

@@ -92,7 +92,7 @@ class PathFollowing(CruisingEnv):
         super().__init__(vehicle, config)
 
     def error_window(self, time):
-        return time > self.config.settle_time + 0.5 * self.config.control_dt  # half a step of margin for float32 time
+        return self.after(time, self.config.settle_time)
 
     def _sample_task(self, rng):
         k1, k2 = jax.random.split(rng)

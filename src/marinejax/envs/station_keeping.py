@@ -48,8 +48,7 @@ class StationKeeping(MarineEnv):
     def error_window(self, time):
         """The last second of the episode: the vehicle has arrived, how well does it hold?"""
         c = self.config
-        # half a step of margin: the env accumulates time in float32
-        return time > c.episode_length * c.control_dt - 1.0 + 0.5 * c.control_dt
+        return self.after(time, c.episode_length * c.control_dt - 1.0)
 
     def _sample_task(self, rng):
         k1, k2 = jax.random.split(rng)

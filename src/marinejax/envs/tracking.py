@@ -61,7 +61,7 @@ class Tracking(MarineEnv):
 
     def error_window(self, time):
         """After the first 2 s, once the reference has ramped up to speed."""
-        return time > 2.0 + 0.5 * self.config.control_dt  # half a step of margin for float32 time
+        return self.after(time, 2.0)
 
     def __init__(self, vehicle: str, kind: str, config: TrackingConfig):
         self.kind = kind
