@@ -73,11 +73,18 @@ def test_noiseless_log_gives_the_parameters_almost_exactly():
     assert result.cost_after < 1e-6 * result.cost_before
 
 
-@pytest.mark.slow
-def test_a_surge_only_log_leaves_the_sway_damping_undetermined():
+@pytest.fixture(scope="module")
+def surge_log():
+    """A log of surge alone (the excitation's first 10 s, three times): the same log, and so the same
+    compiled fit, for the two tests below."""
     plant = Plant("bluerov2_heavy", PlantConfig())
-    surge = excitation(plant, duration=80.0, seed=0)[:200]  # the first 10 s: surge alone
-    log = simulate_log(plant, perturbed(plant), np.concatenate([surge] * 3), seed=2)
+    surge = excitation(plant, duration=80.0, seed=0)[:200]
+    return plant, simulate_log(plant, perturbed(plant), np.concatenate([surge] * 3), seed=2)
+
+
+@pytest.mark.slow
+def test_a_surge_only_log_leaves_the_sway_damping_undetermined(surge_log):
+    plant, log = surge_log
     result = Identifier(plant, log).fit()
     determined = dict(zip(PARAMETER_NAMES, result.determined))
     assert determined["added_mass[0]"] and determined["quadratic_damping[0]"]
@@ -172,11 +179,10 @@ def test_excite_identify_and_train_on_the_fitted_vehicle_from_the_command_line(t
 
 
 @pytest.mark.slow
-def test_a_covariance_that_cannot_be_computed_is_reported_and_the_fit_still_written(tmp_path, monkeypatch):
+def test_a_covariance_that_cannot_be_computed_is_reported_and_the_fit_still_written(surge_log, tmp_path, monkeypatch):
     """numpy's SVD can fail on an ill-conditioned information matrix (it did on a Wu 2018 log): the
     fit keeps its values, says why it has no uncertainty, and writes its parameter set."""
-    plant = Plant("bluerov2_heavy", PlantConfig())
-    log = simulate_log(plant, perturbed(plant), excitation(plant, duration=80.0, seed=0)[:200], seed=2)
+    plant, log = surge_log
 
     def no_svd(*args, **kwargs):
         raise np.linalg.LinAlgError("SVD did not converge")

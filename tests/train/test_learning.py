@@ -12,27 +12,15 @@ from marinejax.train.runner import train
 
 
 @pytest.mark.slow
-def test_short_station_keeping_training_lowers_the_position_error(tmp_path):
-    """1.2 M env steps of the tuned settings (about 2 minutes here): the mean position error of the
-    deterministic evaluation episodes must fall well below the untrained policy's."""
-    config = with_overrides(tuned_config("BlueROV2Heavy-StationKeeping"), ppo={"num_timesteps": 1_200_000, "num_evals": 2})
-    records = []
-    train(config, tmp_path / "run", on_eval=records.append)
-    untrained = records[0]["eval/episode_position_error"] / records[0]["eval/avg_episode_length"]
-    trained = records[-1]["eval/episode_position_error"] / records[-1]["eval/avg_episode_length"]
-    assert records[-1]["step"] >= 1_200_000
-    assert trained < 0.7 * untrained, (untrained, trained)
-
-
-@pytest.mark.slow
 def test_short_sac_training_lowers_the_position_error(tmp_path):
-    """SAC, 0.12 M env steps of its tuned settings (about 1.5 minutes here; the full 0.5 M reach a few
-    mm, README): the evaluation error falls far below the untrained policy's."""
-    config = with_overrides(tuned_config("BlueROV2Heavy-StationKeeping", "sac"), agent={"num_timesteps": 120_000, "num_evals": 2})
+    """SAC, 70 k env steps of its tuned settings (about a minute here; the full 0.5 M reach a few mm,
+    README): the evaluation error falls far below the untrained policy's. (PPO's learning: the
+    held-out seed below.)"""
+    config = with_overrides(tuned_config("BlueROV2Heavy-StationKeeping", "sac"), agent={"num_timesteps": 70_000, "num_evals": 2})
     records = []
     train(config, tmp_path / "run", on_eval=records.append)
     untrained, trained = records[0]["eval/episode_window_error"], records[-1]["eval/episode_window_error"]
-    assert records[-1]["step"] >= 120_000
+    assert records[-1]["step"] >= 70_000
     assert trained < 0.3 * untrained, (untrained, trained)
 
 
