@@ -89,7 +89,7 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.progress import TrainingProgress
     from marinejax.train.hyperparams import load_train_config
-    from marinejax.train.runner import check_devices, train
+    from marinejax.train.runner import check_devices, check_resumable, train
 
     console = make_console()
     target = _check_target(args.target_error)
@@ -100,6 +100,7 @@ def _train(args: argparse.Namespace) -> int:
         if not (run_dir / "config.json").exists():
             raise UserError(f"--resume: {run_dir} is not a run directory (no config.json)")
         config = load_train_config(run_dir)
+        check_resumable(config, run_dir)
     else:
         if not args.env_name:
             raise UserError("name the env to train, e.g. `marinejax train BlueROV2Heavy-StationKeeping` (or --resume RUN_DIR)")

@@ -58,6 +58,13 @@ def check_devices(devices: int | None, agent: PPOConfig | SACConfig) -> int:
     return n
 
 
+def check_resumable(config: TrainConfig, run_dir: Path) -> None:
+    """Raises UserError for a run that cannot be resumed (SAC: `train.sac`)."""
+    if config.algorithm == "sac":
+        raise UserError(f"{run_dir}: a SAC run cannot be resumed (Brax 0.14's SAC fails to restore its own checkpoints, "
+                        "and they hold neither the critics nor the replay buffer); its checkpoints still evaluate and export")
+
+
 def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
     from importlib.metadata import version
 
@@ -107,13 +114,12 @@ def train(
     (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.
     """
     run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
+    if resume:
+        check_resumable(config, run_dir)
     agent, algorithm = config.agent, config.module
     devices = check_devices(devices, agent)
     env = build_env(config)
     steps_done, elapsed_before, restore = 0, 0.0, None
-    if resume and config.algorithm == "sac":
-        raise UserError(f"{run_dir}: a SAC run cannot be resumed (Brax 0.14's SAC fails to restore its own checkpoints, "
-                        "and they hold neither the critics nor the replay buffer); its checkpoints still evaluate and export")
     if resume:
         ckpt = latest_checkpoint(run_dir)
         if ckpt is None:
