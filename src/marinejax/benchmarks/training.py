@@ -75,12 +75,14 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         log(f"{env_name} seed {seed}: finished earlier, reusing {run_dir}")
     else:
         resume = (run_dir / "config.json").exists()
+        config = load_train_config(run_dir) if resume else None
         # nothing to resume: stopped before its first checkpoint, or SAC (Brax cannot restore it, `train.sac`)
-        if resume and (latest_checkpoint(run_dir) is None or load_train_config(run_dir).algorithm == "sac"):
+        if resume and (latest_checkpoint(run_dir) is None or config.algorithm == "sac"):
             log(f"{env_name} seed {seed}: the unfinished run cannot be resumed; training it again in {run_dir}")
             shutil.rmtree(run_dir)
             resume = False
-        config = load_train_config(run_dir) if resume else with_overrides(tuned_config(env_name, algorithm), agent={**agent, "seed": seed}, env=env)
+        if not resume:
+            config = with_overrides(tuned_config(env_name, algorithm), agent={**agent, "seed": seed}, env=env)
 
         def on_eval(r: dict) -> None:
             err = r.get(WINDOW_ERROR)
