@@ -56,9 +56,10 @@ class PathFollowingConfig(CruisingConfig):
     preview_spacing: float = 5.0  # m along the path between observed points
     path: paths.PathConfig = paths.PathConfig()
     # position: 1/(1 + (d/position_scale)^2) and precision: exp(−d/precision_scale) of the cross-track
-    # distance d; heading: to the path's heading; speed: along the path. No upright term: a torpedo
-    # pitches to change depth.
-    reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0)
+    # distance d; heading: to the path's heading; speed: along the path, with the linear penalty the
+    # autopilot has (without it a seed may cruise at full speed for fin authority and ignore the
+    # commanded speed). No upright term: a torpedo pitches to change depth.
+    reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0, speed_penalty=1.0)
 
     def __post_init__(self):
         super().__post_init__()
