@@ -324,7 +324,7 @@ def test_videos_turn_the_fins_with_their_deflection():
     from marinejax.render import FrameRenderer
 
     vehicle = mj.load_vehicle("remus100")
-    renderer = FrameRenderer(vehicle.path, 160, 120, vehicle.sys.qpos_adr)
+    renderer = FrameRenderer(vehicle.mj_model, 160, 120, vehicle.sys.qpos_adr)
     try:
         pose = (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3))
         still = renderer.frame(*pose)

@@ -13,6 +13,15 @@ Integrators (`integrator=`), both with one MJX evaluation per physics step of h 
   same accuracy.
 A vehicle is one free body (its free joint at `sys.qpos_adr` / `sys.dof_adr`).
 
+In a scene with contacts (`sys.contacts`, `marinejax.scene`) a contact force must act on the
+rigid-plus-added inertia, as the water around the vehicle is accelerated with it. There the added
+mass goes into MuJoCo's mass matrix (Jᵀ M_A J at the free joint, J = diag(Rᵀ, I) maps MuJoCo's
+velocities to ν) after `mjx.fwd_position`, and the fluid wrench handed to MuJoCo is
+τ_other − M_A b, b = [−ω × v, 0] being the part of ν̇ that MuJoCo's world-frame linear velocity does
+not carry; MuJoCo's constraint solver then sees the whole inertia. In open water the two
+formulations give the same motion (to float rounding, tested); the cheaper one, the added mass
+inside the applied wrench, is used there.
+
 State conventions: position (m) and quaternion (w, x, y, z, body→world) in the world frame (z up);
 linear (m/s) and angular (rad/s) velocity in the body frame FLU; actuator states in each kind's
 physical unit (a T200's thrust in N), in action order.
@@ -32,7 +41,7 @@ from mujoco import mjx
 import marinejax.actuators as actuators
 from marinejax.errors import UserError
 from marinejax.frames import quat_integrate, quat_to_mat
-from marinejax.hydro.forces import hydro_terms
+from marinejax.hydro.forces import added_mass_at_cg, hydro_terms
 from marinejax.vehicle import Vehicle, VehicleSystem
 
 CommandMode = Literal["thrusters", "wrench"]
@@ -155,6 +164,15 @@ def model_acceleration(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray,
     qacc (6,): the free joint's acceleration [d/dt of the world-frame velocity (m/s²), body-frame
     angular acceleration (rad/s²)], as MuJoCo's forward dynamics gives it under that wrench).
     """
+    terms, rot, nu = _hydro(sys, qpos, qvel, actuator_state, wrench, current_world)
+    xfrc = jnp.concatenate([rot @ terms.applied_wrench[:3], rot @ terms.applied_wrench[3:]])
+    acc = terms.acceleration
+    qacc = jnp.concatenate([rot @ (acc[:3] + jnp.cross(nu[3:], nu[:3])), acc[3:]])
+    return xfrc, qacc
+
+
+def _hydro(sys: VehicleSystem, qpos, qvel, actuator_state, wrench, current_world):
+    """(HydroTerms, body-to-world rotation, ν) at MJX coordinates (qpos, qvel)."""
     model = sys.model
     qa, da = sys.qpos_adr, sys.dof_adr
     rot = quat_to_mat(qpos[qa + 3 : qa + 7])
@@ -170,10 +188,35 @@ def model_acceleration(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray,
         current_world,
         -model.opt.gravity[2],
     )
-    xfrc = jnp.concatenate([rot @ terms.applied_wrench[:3], rot @ terms.applied_wrench[3:]])
-    acc = terms.acceleration
-    qacc = jnp.concatenate([rot @ (acc[:3] + jnp.cross(nu[3:], nu[:3])), acc[3:]])
-    return xfrc, qacc
+    return terms, rot, nu
+
+
+def contact_inputs(sys: VehicleSystem, qpos, qvel, actuator_state, wrench, current_world):
+    """For a scene with contacts (see the module docstring): (xfrc (6,), world [force, torque] at the
+    CG: the fluid and actuator wrench without the added-mass inertia; added (6, 6): the added mass
+    in MuJoCo's coordinates of the free joint, to add to its mass matrix)."""
+    terms, rot, nu = _hydro(sys, qpos, qvel, actuator_state, wrench, current_world)
+    m_a = added_mass_at_cg(sys.hydro)
+    body = terms.other_wrench - m_a @ jnp.concatenate([-jnp.cross(nu[3:], nu[:3]), jnp.zeros(3)])
+    xfrc = jnp.concatenate([rot @ body[:3], rot @ body[3:]])
+    added = jnp.block([[rot @ m_a[:3, :3] @ rot.T, rot @ m_a[:3, 3:]], [m_a[3:, :3] @ rot.T, m_a[3:, 3:]]])
+    return xfrc, added
+
+
+def forward_with_added_mass(sys: VehicleSystem, data: mjx.Data, added: jnp.ndarray) -> mjx.Data:
+    """`mjx.forward` with `added` (6, 6) added to the free joint's block of the mass matrix before the
+    smooth and constraint accelerations are solved (contacts then act on the whole inertia).
+    MJX keeps the dense mass matrix in `data._impl.M` (its own deprecation notice names that path)."""
+    model, da = sys.model, sys.dof_adr
+    d = mjx.fwd_position(model, data)
+    d = d.tree_replace({"_impl.M": d._impl.M.at[da : da + 6, da : da + 6].add(added)})
+    d = mjx.factor_m(model, d)
+    d = mjx.fwd_velocity(model, d)
+    d = mjx.fwd_actuation(model, d)
+    d = mjx.fwd_acceleration(model, d)
+    if d._impl.efc_J.size == 0:
+        return d.replace(qacc=d.qacc_smooth)
+    return mjx.solve(model, d)
 
 
 def _advance_free_joint(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray, dt) -> jnp.ndarray:
@@ -200,19 +243,28 @@ def substep(
     groups = sys.actuators
     if integrator == "euler":
         state = actuators.advance(groups, ps.actuators, target, h)
+        if sys.contacts:
+            xfrc, added = contact_inputs(sys, data.qpos, data.qvel, state, wrench, current_world)
+            data = forward_with_added_mass(sys, data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)), added)
+            return PhysicsState(data=mjx.euler(model, data), actuators=state)
         xfrc, _ = model_acceleration(sys, data.qpos, data.qvel, state, wrench, current_world)
         data = data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc))
         return PhysicsState(data=mjx.step(model, data), actuators=state)
     if integrator != "midpoint":
         raise UserError(f"unknown integrator {integrator!r}; valid: {list(INTEGRATORS)}")
-    # Predictor: the state at t + h/2 from the acceleration at t (hydro_terms holds the whole model).
+    # Predictor: the state at t + h/2 from the acceleration at t (hydro_terms holds the whole model,
+    # contacts excepted).
     _, qacc0 = model_acceleration(sys, data.qpos, data.qvel, ps.actuators, wrench, current_world)
     qpos_mid = _advance_free_joint(sys, data.qpos, data.qvel, h / 2)
     qvel_mid = data.qvel + (h / 2) * qacc0
     actuators_mid = actuators.advance(groups, ps.actuators, target, h / 2)
-    # Midpoint: fluid and actuator wrench there, rigid-body dynamics by MuJoCo.
-    xfrc, _ = model_acceleration(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
-    mid = mjx.forward(model, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)))
+    # Midpoint: fluid and actuator wrench there, rigid-body dynamics (and contacts) by MuJoCo.
+    if sys.contacts:
+        xfrc, added = contact_inputs(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
+        mid = forward_with_added_mass(sys, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)), added)
+    else:
+        xfrc, _ = model_acceleration(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
+        mid = mjx.forward(model, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)))
     data = mid.replace(
         qpos=_advance_free_joint(sys, data.qpos, qvel_mid, h),
         qvel=data.qvel + h * mid.qacc,

@@ -6,6 +6,7 @@ recorded episodes (rendered in a child process with MUJOCO_GL set).
 
 from __future__ import annotations
 
+import copy
 import os
 import subprocess
 import sys
@@ -48,8 +49,9 @@ class FrameRenderer:
     MuJoCo chooses its OpenGL backend when it is first imported: on a machine without a display,
     start Python with MUJOCO_GL=egl."""
 
-    def __init__(self, model_path: str, width: int = 640, height: int = 480, qpos_adr: int = 0):
-        self.model = mujoco.MjModel.from_xml_path(str(model_path))
+    def __init__(self, model: mujoco.MjModel | str | Path, width: int = 640, height: int = 480, qpos_adr: int = 0):
+        """model: the vehicle in its scene (`Vehicle.mj_model`, copied here) or a saved one (.mjb, .xml)."""
+        self.model = _load_model(model)
         self.qpos_adr = int(qpos_adr)  # where the vehicle's free joint starts in qpos (Vehicle.sys.qpos_adr)
         self.data = mujoco.MjData(self.model)
         self.fins = fin_geoms(self.model)
@@ -95,13 +97,21 @@ class FrameRenderer:
         self.renderer.close()
 
 
-def render_frames(model_path: str, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, qpos_adr: int = 0,
+def _load_model(model: mujoco.MjModel | str | Path) -> mujoco.MjModel:
+    if isinstance(model, mujoco.MjModel):
+        return copy.deepcopy(model)  # fins are turned in geom_quat: never in the caller's model
+    if str(model).endswith(".mjb"):
+        return mujoco.MjModel.from_binary_path(str(model))
+    return mujoco.MjModel.from_xml_path(str(model))
+
+
+def render_frames(model: mujoco.MjModel | str | Path, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, qpos_adr: int = 0,
                   width: int = 640, height: int = 480, actuators: np.ndarray | None = None,
                   actuator_names: tuple[str, ...] = ()) -> list[np.ndarray]:
     """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m),
     and the actuator states (T, n) named `actuator_names` (fins' in rad) if given; the targets,
     thinned to about 60 points, are drawn as the reference path."""
-    renderer = FrameRenderer(model_path, width, height, qpos_adr)
+    renderer = FrameRenderer(model, width, height, qpos_adr)
     try:
         path = targets[:: max(1, len(targets) // 60)]
         fins = [(site, list(actuator_names).index(site)) for site, _, _ in renderer.fins if site in actuator_names]
@@ -128,21 +138,23 @@ def write_video(frames: list[np.ndarray], fps: float, out_stem: Path) -> Path:
         return path
 
 
-def render_video(model_path: Path, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, fps: float,
+def render_video(model: mujoco.MjModel, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, fps: float,
                  out_stem: Path, qpos_adr: int = 0, actuators: np.ndarray | None = None, actuator_names: tuple[str, ...] = ()) -> Path:
-    """Render one episode (arrays as `render_frames`) offscreen (MuJoCo, EGL) in a subprocess;
-    returns the MP4 (or GIF) path.
+    """Render one episode of `model` (the vehicle in its scene, `Vehicle.mj_model`; arrays as
+    `render_frames`) offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
 
     MuJoCo picks its OpenGL backend when it is first imported, so rendering runs in a child
     process started with MUJOCO_GL=egl (unless the caller set MUJOCO_GL).
     """
-    data = out_stem.with_suffix(".npz")
+    data, model_file = out_stem.with_suffix(".npz"), out_stem.with_suffix(".mjb")
+    mujoco.mj_saveModel(model, str(model_file), None)
     extra = {} if actuators is None else {"actuators": actuators, "actuator_names": np.array(actuator_names)}
-    np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_path), qpos_adr=qpos_adr, **extra)
+    np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_file), qpos_adr=qpos_adr, **extra)
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.run([sys.executable, "-m", "marinejax.render", str(data), str(out_stem)],
                           env=env, capture_output=True, text=True)
     data.unlink(missing_ok=True)
+    model_file.unlink(missing_ok=True)
     if proc.returncode != 0:
         raise RuntimeError(f"video rendering failed: {proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}")
     return Path(proc.stdout.strip().splitlines()[-1])

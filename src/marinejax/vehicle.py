@@ -1,16 +1,18 @@
-"""Vehicles: an MJCF model plus its hydrodynamic parameters and its actuators, loaded once.
+"""Vehicles: an MJCF model plus its hydrodynamic parameters and its actuators, loaded once, placed
+in a scene (`marinejax.scene`).
 
-A vehicle is one MJCF file in `models/mjcf/` (installed as `marinejax/models/mjcf/`). Its
-`<custom>` section carries named parameter sets (`marinejax:<set>:<field>`) and declares its
-actuators (`marinejax:actuators`, see `marinejax.actuators`), whose sites give each actuator's
-position and axis. Adding a vehicle means adding one file; no code change.
+A vehicle is one MJCF file in `models/mjcf/` (installed as `marinejax/models/mjcf/`): one body
+with a free joint, its cameras, visual geoms (class "visual", no contacts) and collision geoms
+(class "collision", simple shapes, used only in scenes with contacts). Its `<custom>` section
+carries named parameter sets (`marinejax:<set>:<field>`) and declares its actuators
+(`marinejax:actuators`, see `marinejax.actuators`), whose sites give each actuator's position and
+axis. Adding a vehicle means adding one file; no code change.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from importlib import resources
 from pathlib import Path
 
 import mujoco
@@ -22,6 +24,8 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.actuators import ActuatorGroup, custom_text, declared_groups, load_actuators
 from marinejax.hydro.forces import added_mass_at_cg
 from marinejax.hydro.params import HydroParams
+from marinejax.model_files import models_dir
+from marinejax.scene import DEFAULT_SCENE, compose, contacts_enabled
 
 _PREFIX = "marinejax:"
 _RIGID_FIELDS = {"mass": 1, "inertia": 3}
@@ -29,13 +33,7 @@ _RIGID_FIELDS = {"mass": 1, "inertia": 3}
 
 def model_dir() -> Path:
     """Folder holding the vehicle MJCF files: the installed package copy, else the source checkout's."""
-    installed = Path(str(resources.files("marinejax"))) / "models" / "mjcf"
-    if installed.is_dir():
-        return installed
-    checkout = Path(__file__).resolve().parents[2] / "models" / "mjcf"
-    if checkout.is_dir():
-        return checkout
-    raise FileNotFoundError(f"marinejax vehicle models not found in {installed} or {checkout}")
+    return models_dir("mjcf")
 
 
 def list_vehicles() -> list[str]:
@@ -99,9 +97,10 @@ def sensor_settings(vehicle: str) -> dict[str, float]:
 
 @struct.dataclass
 class VehicleSystem:
-    """Everything the jitted physics reads: the MJX model (rigid body, gravity, timestep), the
-    fluid parameters and the actuator groups (in action order). Indices are static Python ints,
-    looked up once at load."""
+    """Everything the jitted physics reads: the MJX model (rigid body, scene, gravity, timestep),
+    the fluid parameters and the actuator groups (in action order). Indices are static Python ints,
+    looked up once at load; `contacts` says whether the scene collides (the physics then puts the
+    added mass into MuJoCo's mass matrix, `marinejax.physics`)."""
 
     model: mjx.Model
     hydro: HydroParams
@@ -109,6 +108,7 @@ class VehicleSystem:
     body_id: int = struct.field(pytree_node=False)
     qpos_adr: int = struct.field(pytree_node=False)
     dof_adr: int = struct.field(pytree_node=False)
+    contacts: bool = struct.field(pytree_node=False, default=False)
 
     @property
     def num_actuators(self) -> int:
@@ -123,10 +123,11 @@ class Vehicle:
     param_set: str
     param_sets: tuple[str, ...]
     source: str  # citation of the parameter set
-    mj_model: mujoco.MjModel
+    mj_model: mujoco.MjModel  # the vehicle in its scene, compiled (rendering draws it)
     sys: VehicleSystem
     actuator_names: tuple[str, ...]  # sites of the actuators, in action order
-    path: Path  # the MJCF file it was loaded from (rendering reloads it)
+    path: Path  # the vehicle's MJCF file
+    scene: str = DEFAULT_SCENE  # the scene's name (or file path)
 
     @property
     def num_actuators(self) -> int:
@@ -180,14 +181,14 @@ def _read_param_file(path: Path, vehicle: str, actuator_fields: tuple[str, ...])
     return values, actuators, data.get("source", str(path))
 
 
-def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
+def load_vehicle(name: str | Path, param_set: str | None = None, scene: str | Path = DEFAULT_SCENE) -> Vehicle:
     """Load a vehicle by name (see `list_vehicles()`) or from an MJCF file path ending in .xml,
     with its default or a named parameter set, or a parameter-set .json file (fields of a set plus
     its actuators' file fields, e.g. thruster_gain and thruster_time_constant; `marinejax identify`
-    writes one).
+    writes one), placed in `scene` (a name of `marinejax.scene.list_scenes()` or an MJCF path).
 
-    Raises UserError (a ValueError) naming the bad value and the valid choices for an unknown vehicle or
-    parameter set, and for missing, non-finite or unphysical parameters.
+    Raises UserError (a ValueError) naming the bad value and the valid choices for an unknown vehicle,
+    scene or parameter set, and for missing, non-finite or unphysical parameters.
     """
     if str(name).endswith(".xml"):
         path = Path(name)
@@ -199,12 +200,13 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         if name not in names:
             raise UserError(f"unknown vehicle {name!r}; available vehicles: {names}")
         path = model_dir() / f"{name}.xml"
-    m = mujoco.MjModel.from_xml_path(str(path))
     where = f"vehicle {name!r} ({path.name})"
-
-    if m.nbody != 2 or m.body_jntnum[1] != 1 or m.jnt_type[m.body_jntadr[1]] != mujoco.mjtJoint.mjJNT_FREE:
+    spec = mujoco.MjSpec.from_file(str(path))
+    own = [b for b in spec.worldbody.bodies]
+    if len(own) != 1 or own[0].bodies or len(own[0].joints) != 1 or own[0].joints[0].type != mujoco.mjtJoint.mjJNT_FREE:
         raise UserError(f"{where}: expected exactly one body with one free joint")
-    body = 1
+    m = compose(spec, scene).compile()
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, own[0].name)
     actuators = load_actuators(m, body, where)
     sets = _param_sets(m, where)
     default = custom_text(m, _PREFIX + "default_set")
@@ -242,6 +244,11 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         raise UserError(f"{where}, parameter set {param_set!r}: rigid-body plus added mass must be positive definite; "
                         f"its eigenvalues are {np.round(np.linalg.eigvalsh(total), 4).tolist()}")
 
+    _set_inverse_weights(m, body, total)
+    contacts = contacts_enabled(m)
+    if contacts and mjx.is_sparse(m):
+        raise UserError(f"{where} in scene {scene!r}: MuJoCo chose a sparse mass matrix ({m.nv} degrees of freedom); "
+                        "contacts need the dense one: set <option jacobian=\"dense\"/>")
     sys = VehicleSystem(
         model=mjx.put_model(m),
         hydro=hydro,
@@ -249,6 +256,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         body_id=body,
         qpos_adr=int(m.jnt_qposadr[m.body_jntadr[body]]),
         dof_adr=int(m.jnt_dofadr[m.body_jntadr[body]]),
+        contacts=contacts,
     )
     return Vehicle(
         name=name,
@@ -259,4 +267,17 @@ def load_vehicle(name: str | Path, param_set: str | None = None) -> Vehicle:
         sys=sys,
         actuator_names=tuple(n for g in actuators for n in g.names),
         path=Path(path),
+        scene=str(scene),
     )
+
+
+def _set_inverse_weights(m: mujoco.MjModel, body: int, mass_matrix: np.ndarray) -> None:
+    """MuJoCo's contact softness is scaled by each body's inverse weight (`body_invweight0`,
+    `dof_invweight0`: mean diagonal of the inverse inertia, translation and rotation), computed by the
+    compiler from the rigid body alone; set them from the rigid-plus-added `mass_matrix` (6, 6, body
+    frame at the CG) so that a contact acts on the inertia the fluid gives the vehicle."""
+    inverse = np.linalg.inv(mass_matrix)
+    translation, rotation = np.trace(inverse[:3, :3]) / 3, np.trace(inverse[3:, 3:]) / 3
+    m.body_invweight0[body] = [translation, rotation]
+    dof = m.jnt_dofadr[m.body_jntadr[body]]
+    m.dof_invweight0[dof : dof + 6] = [translation] * 3 + [rotation] * 3

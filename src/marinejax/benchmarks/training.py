@@ -67,7 +67,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
     from marinejax.train.curves import WINDOW_ERROR
     from marinejax.train.checkpoints import latest_checkpoint
-    from marinejax.train.runner import train
+    from marinejax.train.runner import resumable, train
 
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
@@ -77,7 +77,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         resume = (run_dir / "config.json").exists()
         config = load_train_config(run_dir) if resume else None
         # nothing to resume: stopped before its first checkpoint, or SAC (Brax cannot restore it, `train.sac`)
-        if resume and (latest_checkpoint(run_dir) is None or config.algorithm == "sac"):
+        if resume and (latest_checkpoint(run_dir) is None or not resumable(config)):
             log(f"{env_name} seed {seed}: the unfinished run cannot be resumed; training it again in {run_dir}")
             shutil.rmtree(run_dir)
             resume = False

@@ -255,7 +255,7 @@ class _Frames:
             from marinejax.render import FrameRenderer
 
             vehicle = self.kernels.env.vehicle
-            self.renderer = FrameRenderer(vehicle.path, self.width, self.height, vehicle.sys.qpos_adr)
+            self.renderer = FrameRenderer(vehicle.mj_model, self.width, self.height, vehicle.sys.qpos_adr)
         target = np.asarray(self.kernels.target(info))
         return self.renderer.frame(position, quaternion, target)
 

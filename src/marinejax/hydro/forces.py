@@ -13,7 +13,9 @@ solve a division.
 
 Added mass is solved exactly, not lagged: `hydro_terms` returns the acceleration ν̇ that solves
 (M_RB + M_A) ν̇ = everything else, and the wrench which, applied to the rigid body alone,
-produces that same ν̇ (τ_applied = τ_other − M_A ν̇). That wrench is what MuJoCo receives.
+produces that same ν̇ (τ_applied = τ_other − M_A ν̇). That wrench is what MuJoCo receives in open
+water; with contacts the added mass goes into MuJoCo's mass matrix instead and MuJoCo receives
+τ_other (`marinejax.physics`).
 """
 
 from __future__ import annotations
@@ -153,6 +155,7 @@ class HydroTerms:
 
     acceleration: jnp.ndarray  # (6,) ν̇, m/s^2 and rad/s^2
     applied_wrench: jnp.ndarray  # (6,) wrench to apply to the rigid body (N, N m), gravity excluded
+    other_wrench: jnp.ndarray  # (6,) τ_other: propulsion, fluid and buoyancy, without −M_A ν̇ and the weight
 
 
 def hydro_terms(
@@ -181,7 +184,7 @@ def hydro_terms(
         tau_other = tau + fluid
         rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
         acceleration = jnp.linalg.solve(jnp.diag(m_rb) + m_a, rhs)
-        return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a @ acceleration)
+        return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a @ acceleration, other_wrench=tau_other)
     # M_RB and M_A diagonal (CG at the origin, principal axes; diagonal added mass): the Coriolis
     # terms are cross products and the solve is a division.
     m_a = params.added_mass
@@ -194,7 +197,7 @@ def hydro_terms(
     tau_other = tau + fluid
     rhs = tau_other + weight - coriolis_force_diagonal(m_rb, nu)
     acceleration = rhs / (m_rb + m_a)
-    return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a * acceleration)
+    return HydroTerms(acceleration=acceleration, applied_wrench=tau_other - m_a * acceleration, other_wrench=tau_other)
 
 
 def kinetic_energy(params: HydroParams, mass, inertia, nu_r: jnp.ndarray) -> jnp.ndarray:

@@ -67,7 +67,7 @@ def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path
         from marinejax.render import render_video
 
         try:
-            summary["video"] = str(render_video(env.vehicle.path, result["position"][0], result["quaternion"][0], result["target"][0],
+            summary["video"] = str(render_video(env.vehicle.mj_model, result["position"][0], result["quaternion"][0], result["target"][0],
                                                 1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr,
                                                 result["actuators"][0], env.vehicle.actuator_names))
         except RuntimeError as err:

@@ -58,9 +58,14 @@ def check_devices(devices: int | None, agent: PPOConfig | SACConfig) -> int:
     return n
 
 
+def resumable(config: TrainConfig) -> bool:
+    """Whether a run of this config can be resumed from its checkpoints (not SAC: `train.sac`)."""
+    return config.algorithm != "sac"
+
+
 def check_resumable(config: TrainConfig, run_dir: Path) -> None:
     """Raises UserError for a run that cannot be resumed (SAC: `train.sac`)."""
-    if config.algorithm == "sac":
+    if not resumable(config):
         raise UserError(f"{run_dir}: a SAC run cannot be resumed (Brax 0.14's SAC fails to restore its own checkpoints, "
                         "and they hold neither the critics nor the replay buffer); its checkpoints still evaluate and export")
 
