@@ -151,3 +151,69 @@ def test_an_impact_stops_the_rigid_plus_added_mass_with_the_restitution_of_the_c
     data = jax.jit(lambda d: jax.lax.fori_loop(0, 1000, lambda i, d: mjx.step(model, d), d))(data.replace(qvel=data.qvel.at[0].set(u0)))
     assert float(data.qvel[0]) < -0.02  # it does bounce
     assert -u1 / u0 == pytest.approx(-float(data.qvel[0]) / u0, abs=0.01)
+
+
+def test_a_plant_in_a_scene_reports_the_contact_and_an_env_hands_it_to_its_task():
+    import marinejax as mj
+    from marinejax.plant import Plant, PlantConfig
+
+    plant = Plant("bluerov2_heavy", PlantConfig(scene="wall", action_mode="wrench", control_dt=0.05))
+    params = plant.nominal_params()
+    params = params.replace(hydro=_neutral(plant.vehicle))
+    state = plant.init(jax.random.PRNGKey(0), params, physics.initial_state(plant.vehicle, position=(1.6, 0.0, 0.0)))
+    action = jnp.array([20.0, 0, 0, 0, 0, 0]) / jnp.asarray(plant.config.wrench_scale)
+    step = jax.jit(lambda s, k: plant.step(params, s, action, k)[0])
+    for k in jax.random.split(jax.random.PRNGKey(1), 300):
+        state = step(state, k)
+    assert float(plant.contact_wrench(state)[0]) == pytest.approx(-20.0, rel=5e-3)
+    assert not np.any(np.asarray(Plant("bluerov2_heavy").contact_wrench(state)))  # open water: none
+
+    env = mj.make("BlueROV2Heavy-StationKeeping", scene="wall")
+    assert "contact" not in mj.make("BlueROV2Heavy-StationKeeping").reset(jax.random.PRNGKey(0)).info
+    s = env.step(env.reset(jax.random.PRNGKey(0)), jnp.zeros(env.action_size))
+    assert s.info["contact"].shape == (6,)
+    with pytest.raises(UserError, match=r"unknown scene 'reef'"):
+        mj.make("BlueROV2Heavy-StationKeeping", scene="reef")
+
+
+def test_the_rov_dock_guides_a_vehicle_pushed_at_it_off_centre_onto_its_landing_point():
+    """A pilot that only pushes towards the station (15 N along world +x) and holds heading 0 docks
+    from 0.3 m off the axis: the funnel guides the BlueROV2 Heavy into the cage, onto the back bars."""
+    from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
+
+    vehicle = load_vehicle("bluerov2_heavy", scene="rov_dock")
+    sys = physics.with_timestep(vehicle.sys.replace(hydro=_neutral(vehicle)), 0.05)
+
+    def pilot(vs):
+        force = quat_to_mat(vs.quaternion).T @ jnp.array([15.0, 0.0, 0.0])
+        yaw = quat_to_euler(vs.quaternion)[2]
+        return jnp.concatenate([force, jnp.array([0.0, 0.0, -20.0 * yaw - 10.0 * vs.angular_velocity[2]])])
+
+    @jax.jit
+    def dock(start):
+        def body(ps, _):
+            ps = physics.control_step(sys, ps, pilot(physics.from_physics(sys, ps)), jnp.zeros(3), 1, mode="wrench")
+            return ps, None
+        ps = jax.lax.scan(body, physics.to_physics(sys, start), None, length=300)[0]
+        return physics.from_physics(sys, ps), ps.data.qfrc_constraint[:3]
+
+    for y0, yaw0 in [(-0.3, -0.1), (0.35, 0.0)]:
+        vs, force = dock(physics.initial_state(vehicle, position=(-1.5, y0, 0.05), quaternion=quat_from_euler(0.0, 0.0, yaw0)))
+        assert float(vs.position[0]) == pytest.approx(0.0, abs=0.02)  # at the landing point, on the back bars
+        assert abs(float(vs.position[1])) < 0.075  # within the cage's 6 cm of play
+        assert abs(float(np.degrees(quat_to_euler(vs.quaternion)[2]))) < 5.0
+        assert float(force[0]) == pytest.approx(-15.0, rel=1e-2)  # the bars hold the push
+
+
+def test_the_torpedo_dock_funnels_a_cruising_remus_into_its_tube():
+    """The REMUS 100 cruising at 1 m/s with its fins centred, 0.25 m off the dock's axis sideways and
+    0.1 m up: the cone turns it into the tube, and it goes on forward inside it."""
+    vehicle = load_vehicle("remus100", scene="torpedo_dock")
+    shaft = 1.0 / 2.554 * 1525.0  # rpm for about 1 m/s
+    commands = jnp.tile(jnp.array([0.0, 0.0, shaft / 1525.0 * 2.0 - 1.0]), (80, 1))
+    start = physics.initial_state(vehicle, position=(-3.0, 0.25, 0.1), velocity=(1.0, 0.0, 0.0), actuators=(0.0, 0.0, shaft))
+    trajectory = physics.rollout(vehicle, commands, start, control_dt=0.1, substeps=2)
+    axis = np.asarray(trajectory.position[-1]) + [0.8, 0.0, 0.02]  # the nose, on the hull's axis 0.02 m above the CG
+    assert axis[0] > 1.5  # past the tube's entrance (x = 1 m)
+    assert np.hypot(axis[1], axis[2]) < 0.2 - 0.095 + 0.01  # inside: the tube's play (inner radius minus the hull's)
+    assert float(trajectory.velocity[-1, 0]) > 0.5

@@ -10,9 +10,14 @@ gravity, the zero fluid density of MuJoCo's own fluid model) are the vehicle's. 
 MJCF in a scene: the vehicle keeps its names, options and custom data; the scene's names get the
 prefix "scene:" (the geom "wall" becomes "scene:wall").
 
+Give the scene's geoms `priority="1"` so that their contact parameters win over the vehicle's
+(MuJoCo otherwise takes the larger friction of the two geoms, and a vehicle's geoms have MuJoCo's
+default of 1).
+
 Scenes shipped: open_water (the default; no contacts, a seabed drawn 10 m below for videos),
-seabed (a hard flat seabed at world z = −5 m) and wall (that seabed and a wall whose face is the
-plane x = 2 m).
+seabed (a hard flat seabed at world z = −5 m), wall (that seabed and a wall, the plane x = 2 m),
+rov_dock (an ROV docking cage with a funnel, landing point at the origin) and torpedo_dock (a cone
+narrowing to a tube along +x, for the REMUS 100).
 """
 
 from __future__ import annotations

@@ -16,7 +16,9 @@ the episode beyond `max_distance` or on a non-finite state and makes the metrics
 State.pipeline_state is the `PlantState` (MJX data, thruster lag, ocean current). State.info holds
 all episode randomness, so a full reset re-draws it:
   rng, time (s since episode start), task (the target or trajectory), params (`PlantParams`: the
-  physical parameters and disturbance of this episode), last_action, integral (see below).
+  physical parameters and disturbance of this episode), last_action, integral (see below), and in a
+  scene with contacts (`config.scene`) contact: what the scene exerts on the vehicle after the step
+  (`Plant.contact_wrench`: force N, world; moment N m about the CG, body), for the task's hooks.
 `reset(rng, params)` starts an episode with parameters of your own instead of drawn ones.
 
 Observation: an array (the task's observation, then the integral below). With
@@ -250,6 +252,8 @@ class MarineEnv(Env):
             "last_action": action,
             "integral": jnp.zeros(4),
         }
+        if self.plant.sys.contacts:
+            info["contact"] = jnp.zeros(6)
         vs = self.plant.vehicle_state(ps)
         if self._sensor_mode:
             suite = self.plant.sensors
@@ -284,6 +288,8 @@ class MarineEnv(Env):
         applied, info = self._delay_action(info, action)  # actuation latency (sensor mode)
         ps, finite = self.plant.step(info["params"], pipeline_state, applied, k_plant)  # actuators and physics
         info.update(rng=rng, time=info["time"] + self.config.control_dt)
+        if self.plant.sys.contacts:
+            info["contact"] = self.plant.contact_wrench(ps)
         vs = self.plant.vehicle_state(ps)
         info["task"] = self.advance_task(info["task"], vs)  # the task's own state (a path's closest point)
         if self._sensor_mode:

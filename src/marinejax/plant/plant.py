@@ -36,6 +36,7 @@ from marinejax.plant.disturbance import DisturbanceConfig, body_wrench, sample_d
 from marinejax.plant.params import PlantParams, apply_params, nominal_params
 from marinejax.plant.randomization import RandomizationConfig, sample_dynamics
 from marinejax.plant.sensors import SensorConfig, SensorSuite
+from marinejax.scene import DEFAULT_SCENE, scene_path
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -44,6 +45,7 @@ class PlantConfig:
     """How a vehicle is simulated and what varies per episode. Times in s."""
 
     param_set: str | None = None  # vehicle parameter set (None: the vehicle's default)
+    scene: str = DEFAULT_SCENE  # the world the vehicle is in: a name of marinejax.scene.list_scenes() or an MJCF path
     control_dt: float = 0.05  # s per action (20 Hz)
     substeps: int = 1  # physics steps per action (50 ms with the second-order midpoint integrator)
     integrator: str = "midpoint"  # "midpoint" (second order) or "euler" (first order, needs <= 0.02 s steps)
@@ -55,6 +57,7 @@ class PlantConfig:
     sensors: SensorConfig = SensorConfig()  # read by envs in observation_mode "sensors"
 
     def __post_init__(self):
+        scene_path(self.scene)  # an unknown scene is named with the valid ones here, not at the first reset
         if self.action_mode not in COMMAND_MODES:
             raise UserError(f"config 'action_mode' must be one of {list(COMMAND_MODES)}, got {self.action_mode!r}")
         if not self.control_dt > 0:
@@ -80,7 +83,10 @@ class Plant:
 
     def __init__(self, vehicle: str | Vehicle, config: PlantConfig = PlantConfig()):
         self.config = config
-        self.vehicle = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle, param_set=config.param_set)
+        if isinstance(vehicle, Vehicle) and vehicle.scene != str(config.scene):
+            raise UserError(f"vehicle {vehicle.name!r} was loaded in scene {vehicle.scene!r} but the config asks for "
+                            f"{config.scene!r}; load it with load_vehicle(..., scene={config.scene!r}) or pass its name")
+        self.vehicle = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle, param_set=config.param_set, scene=config.scene)
         self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
         self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
         self.action_size = self.vehicle.num_actuators if config.action_mode == "thrusters" else 6
@@ -148,6 +154,15 @@ class Plant:
     def vehicle_state(self, state: PlantState) -> VehicleState:
         """The exact kinematic state: world position and quaternion, body-frame velocities, thrust."""
         return from_physics(self.sys, state.physics)
+
+    def contact_wrench(self, state: PlantState) -> jnp.ndarray:
+        """What the scene's contacts exert on the vehicle (6,): force (N, world frame) and moment about
+        the CG (N m, body frame FLU), from MuJoCo's constraint solution at the last physics step
+        (zeros where the scene has no contacts)."""
+        if not self.sys.contacts:
+            return jnp.zeros(6)
+        da = self.sys.dof_adr
+        return state.physics.data.qfrc_constraint[da : da + 6]
 
     def privileged(self, params: PlantParams, state: PlantState) -> jnp.ndarray:
         """What a real vehicle cannot measure, as one vector for a critic (body frame FLU):
