@@ -52,6 +52,17 @@ def test_scenes_are_listed_and_bad_ones_named():
         load_vehicle("bluerov2", scene="/tmp/nowhere.xml")
 
 
+def test_a_new_scene_is_one_file(tmp_path):
+    """A scene written here, with no code change: a pillar any vehicle can be placed beside."""
+    path = tmp_path / "pillar.xml"
+    path.write_text('<mujoco><worldbody><geom name="pillar" type="capsule" fromto="3 0 -5 3 0 5" size="0.3" '
+                    'priority="1"/></worldbody></mujoco>')
+    for name in ("bluerov2", "remus100_four_fin"):
+        vehicle = load_vehicle(name, scene=path)
+        assert vehicle.sys.contacts and vehicle.scene == str(path)
+        assert vehicle.mj_model.geom("scene:pillar").size[0] == pytest.approx(0.3)
+
+
 def test_a_scene_with_a_moving_body_is_refused(tmp_path):
     path = tmp_path / "buoy.xml"
     path.write_text('<mujoco><worldbody><body name="buoy"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>')
