@@ -23,7 +23,7 @@ from mujoco import mjx
 from marinejax.errors import MissingFileError, UserError
 from marinejax.actuators import ActuatorGroup, custom_text, declared_groups, load_actuators
 from marinejax.hydro.forces import added_mass_at_cg
-from marinejax.hydro.params import HydroParams
+from marinejax.hydro.params import FIELDS as HYDRO_FIELDS, HydroParams
 from marinejax.model_files import models_dir
 from marinejax.scene import DEFAULT_SCENE, compose, contacts_enabled
 
@@ -157,7 +157,7 @@ def _param_sets(m: mujoco.MjModel, where: str) -> list[str]:
     return sorted(sets)
 
 
-_FILE_FIELDS = ("added_mass", "linear_damping", "quadratic_damping", "volume", "fluid_density", "center_of_buoyancy", "mass", "inertia")
+_FILE_FIELDS = (*HYDRO_FIELDS, *_RIGID_FIELDS)
 
 
 def _read_param_file(path: Path, vehicle: str, actuator_fields: tuple[str, ...]) -> tuple[dict[str, np.ndarray], dict[str, float], str]:

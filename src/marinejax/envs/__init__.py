@@ -1,4 +1,4 @@
-"""Registered RL tasks: station keeping and circle, helix and lemniscate tracking for ROVs; the
+"""Registered RL tasks: station keeping, docking and circle, helix and lemniscate tracking for ROVs; the
 autopilot and waypoint, circle, helix and lemniscate path following for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
@@ -20,6 +20,7 @@ from marinejax.envs.registry import (
     register_with_brax,
 )
 from marinejax.envs.autopilot import Autopilot, AutopilotConfig
+from marinejax.envs.docking import Docking, DockingConfig
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.envs.tracking import TrackingConfig, Tracking
@@ -27,6 +28,7 @@ from marinejax.envs.trajectories import TrajectoryConfig
 from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
+register_task("Docking", Docking)  # ROVs, in the rov_dock scene
 register_task("Autopilot", Autopilot)  # torpedo AUVs
 register_task("WaypointFollowing", PathFollowing, kind="lines")
 register_task("CircleFollowing", PathFollowing, kind="circle")
@@ -46,6 +48,8 @@ __all__ = [
     "Autopilot",
     "AutopilotConfig",
     "CurrentConfig",
+    "Docking",
+    "DockingConfig",
     "DisturbanceConfig",
     "EnvConfig",
     "MarineEnv",

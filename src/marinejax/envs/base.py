@@ -89,7 +89,8 @@ class RewardConfig:
     angular_velocity: −|ω|^2 (rad^2/s^2); speed (tasks with a speed set-point): exp(−|speed error| /
     speed_scale); speed_penalty (the same tasks): −|speed error| (m/s), a slope at any error;
     heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale), sharp where
-    the heading term is flat.
+    the heading term is flat; impact (tasks in a scene with contacts): −(|contact force| − threshold)/threshold
+    above the task's threshold.
     """
 
     position: float = 2.0
@@ -106,6 +107,7 @@ class RewardConfig:
     speed_penalty: float = 0.0
     heading_precision: float = 0.0
     heading_precision_scale: float = 0.05  # rad
+    impact: float = 0.0
 
 
 OBSERVATION_MODES = ("state", "sensors")

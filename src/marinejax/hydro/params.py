@@ -19,6 +19,7 @@ _SIZES = {
     "fluid_density": 1,
     "center_of_buoyancy": 3,
 }
+FIELDS = tuple(_SIZES)  # the required fields, in the order parameter sets and files list them
 # optional fields and their defaults (the ROVs use none of them)
 _OPTIONAL = {
     "reference_point": np.zeros(3),
