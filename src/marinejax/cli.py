@@ -156,7 +156,7 @@ def _print_eval(console, result: dict[str, Any]) -> None:
         f"{100 * result['success_rate']:.0f} %"
     )
     others = [f"{key.replace('_mean', '').removesuffix('_deg').replace('_', ' ')} "
-              + (f"{result[key]:.2f}°" if unit == "°" else f"{result[key]:.4f} {unit}")
+              + (f"{result[key]:.2f}°" if unit == "°" else f"{result[key]:.4f} {unit}".rstrip())
               for key, unit in result.get("units", {}).items()]
     if others:
         console.print(f"  mean over the window: {', '.join(others)}")
