@@ -25,6 +25,7 @@ from marinejax.physics import (
     initial_state,
     rollout,
 )
+from marinejax.scene import list_scenes
 from marinejax.vehicle import Vehicle, VehicleSystem, list_vehicles, load_vehicle
 
 from marinejax._version import __version__ as __version__
@@ -41,6 +42,7 @@ __all__ = [
     "get_default_config",
     "initial_state",
     "list_envs",
+    "list_scenes",
     "list_vehicles",
     "load_vehicle",
     "make",
