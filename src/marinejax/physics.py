@@ -219,6 +219,13 @@ def forward_with_added_mass(sys: VehicleSystem, data: mjx.Data, added: jnp.ndarr
     return mjx.solve(model, d)
 
 
+def _forward_in_scene(sys: VehicleSystem, data: mjx.Data, qpos, qvel, actuator_state, wrench, current_world) -> mjx.Data:
+    """MJX's forward dynamics with contacts at (qpos, qvel): the fluid and actuator wrench of
+    `contact_inputs` applied, the added mass in the mass matrix (`forward_with_added_mass`)."""
+    xfrc, added = contact_inputs(sys, qpos, qvel, actuator_state, wrench, current_world)
+    return forward_with_added_mass(sys, data.replace(qpos=qpos, qvel=qvel, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)), added)
+
+
 def _advance_free_joint(sys: VehicleSystem, qpos: jnp.ndarray, qvel: jnp.ndarray, dt) -> jnp.ndarray:
     """qpos after moving the free joint for dt (s) at constant qvel (world velocity, body rates)."""
     qa, da = sys.qpos_adr, sys.dof_adr
@@ -244,8 +251,7 @@ def substep(
     if integrator == "euler":
         state = actuators.advance(groups, ps.actuators, target, h)
         if sys.contacts:
-            xfrc, added = contact_inputs(sys, data.qpos, data.qvel, state, wrench, current_world)
-            data = forward_with_added_mass(sys, data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)), added)
+            data = _forward_in_scene(sys, data, data.qpos, data.qvel, state, wrench, current_world)
             return PhysicsState(data=mjx.euler(model, data), actuators=state)
         xfrc, _ = model_acceleration(sys, data.qpos, data.qvel, state, wrench, current_world)
         data = data.replace(xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc))
@@ -260,8 +266,7 @@ def substep(
     actuators_mid = actuators.advance(groups, ps.actuators, target, h / 2)
     # Midpoint: fluid and actuator wrench there, rigid-body dynamics (and contacts) by MuJoCo.
     if sys.contacts:
-        xfrc, added = contact_inputs(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
-        mid = forward_with_added_mass(sys, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)), added)
+        mid = _forward_in_scene(sys, data, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
     else:
         xfrc, _ = model_acceleration(sys, qpos_mid, qvel_mid, actuators_mid, wrench, current_world)
         mid = mjx.forward(model, data.replace(qpos=qpos_mid, qvel=qvel_mid, xfrc_applied=data.xfrc_applied.at[sys.body_id].set(xfrc)))
