@@ -41,6 +41,9 @@ On a path-following task (`los`) the same loops take their pitch and heading com
 line-of-sight guidance (`_line_of_sight`, Fossen 2021 section 12.4) with its distance Δ tuned by `tune`,
 the path's curvature as a yaw-rate feedforward and an integral on the heading error (the rudder a
 steady turn needs).
+
+Obstacle avoidance (`avoid_controller`): follow-the-gap on the sonar's range image steering the PID
+towards a point ahead on the free beam nearest the goal (`_avoid_law`), its safe range tuned by `tune`.
 """
 
 from __future__ import annotations
@@ -57,7 +60,6 @@ from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
 from marinejax.plant import Plant
-from marinejax.statistics import summarize
 from marinejax.actuators import state_ranges
 from marinejax.actuators.fin import steering_mix
 from marinejax.actuators.t200 import full_thrust, inverse_t200, only_t200
@@ -397,6 +399,76 @@ def torpedo_autopilot(env: MarineEnv, config: TorpedoAutopilotConfig = TorpedoAu
     return _torpedo_law(_torpedo(env), _torpedo_design(env, config))
 
 
+@dataclasses.dataclass(frozen=True)
+class AvoidConfig:
+    """Reactive obstacle avoidance on the sonar (`avoid_controller`): the free beam nearest the goal
+    steers the PID."""
+
+    safe_range: float = 4.0  # m: a beam is free if its echo is farther than this (or than the goal)
+    margin: float = 0.8  # m: half the width a free direction needs (vehicle half-width plus a margin)
+    lookahead: float = 2.0  # m: how far ahead of the vehicle the steering point is
+
+    def __post_init__(self):
+        check_fields("AvoidConfig", self, strict=True)
+
+
+def _avoid_model(env: MarineEnv):
+    if "sonar" not in env.observation_fields():
+        raise UserError("the avoid controller steers on the sonar; enable it (--env sensors.sonar.enabled=true)")
+    c = env.plant.scene_sensors.sensors["sonar"].config
+    azimuth = np.linspace(-c.horizontal_fov / 2, c.horizontal_fov / 2, c.beams) if c.beams > 1 else np.zeros(1)
+    return _hover(env), azimuth.astype(np.float32)
+
+
+def _avoid_design(env: MarineEnv, config: AvoidConfig):
+    return (*_pid_design(env, PIDConfig()), *(np.float32(v) for v in (config.safe_range, config.margin, config.lookahead)))
+
+
+def _avoid_law(model, gains) -> Controller:
+    """Follow the gap on the sonar's range image (body frame, horizontal): a beam is blocked if some
+    echo closer than `safe_range` (or than the goal) lies within `margin` m of its line; the vehicle
+    heads for the free beam nearest the goal's bearing and the PID drives it towards a point on it
+    `lookahead` m ahead, scaled by cos⁴ of the heading error (it turns on the spot first: the sonar
+    sees ahead only), at the goal's depth. With the goal outside the fan, or no free beam, it turns on
+    the spot (towards the goal, or to the left); within 1 m of the goal it goes straight to it."""
+    h, azimuth = model
+    kp, kd, ki, safe_range, margin, lookahead = gains
+    pid = _pid_law(h, (kp, kd, ki))
+    f = h.fields
+    azimuth = jnp.asarray(azimuth)
+    half_fov = float(np.max(np.abs(np.asarray(model[1]))))
+
+    def act(carry, obs, info):
+        goal = obs[f["position_error"]]
+        distance = jnp.linalg.norm(goal[:2])
+        goal_bearing = jnp.arctan2(goal[1], goal[0])
+        ranges = obs[f["sonar"]]
+        close = ranges < jnp.minimum(safe_range, distance + margin)
+        # echo j is within `margin` of beam i's line if r_j |sin(a_i − a_j)| < margin in front of the vehicle
+        dangle = azimuth[:, None] - azimuth[None, :]
+        blocks = close[None, :] & (ranges[None, :] * jnp.abs(jnp.sin(dangle)) < margin) & (jnp.cos(dangle) > 0)
+        free = ~jnp.any(blocks, axis=1)
+        cost = jnp.where(free, jnp.abs(azimuth - goal_bearing), jnp.inf)
+        best = jnp.argmin(cost)
+        visible = jnp.abs(goal_bearing) < half_fov
+        bearing = jnp.where(visible & jnp.isfinite(cost[best]), azimuth[best], jnp.where(visible, half_fov, goal_bearing))
+        advance = jnp.where(visible & jnp.isfinite(cost[best]), 1.0, 0.0) * jnp.maximum(jnp.cos(bearing), 0.0) ** 4
+        point = jnp.stack([jnp.cos(bearing), jnp.sin(bearing)]) * advance * jnp.minimum(lookahead, distance)
+        far = distance > 1.0
+        point = jnp.where(far, point, goal[:2])
+        bearing = jnp.where(far, bearing, jnp.arctan2(*obs[f["heading"]]))
+        steered = obs.at[f["position_error"]].set(jnp.concatenate([point, goal[2:]]))
+        steered = steered.at[f["heading"]].set(jnp.stack([jnp.sin(bearing), jnp.cos(bearing)]))
+        return pid.act(carry, steered, info)
+
+    return Controller(init=pid.init, act=act)
+
+
+def avoid_controller(env: MarineEnv, config: AvoidConfig = AvoidConfig()) -> Controller:
+    """Reactive obstacle avoidance (`_avoid_law`) on `env`'s sonar and goal, through the PID."""
+    return _avoid_law(_avoid_model(env), _avoid_design(env, config))
+
+
 # Tuning grids: one scalar per controller, the rest follows from the model (module docstring).
 # name: (what the scalar is, grid, config of a value, design: (env, config) -> gains,
 #        law: (model, gains) -> Controller, model: env -> what the law knows of the vehicle)
@@ -410,6 +482,8 @@ TUNING_GRIDS = {
     "los": ("line-of-sight distance (m)", (2.5, 5.0, 10.0, 20.0),
             lambda d: TorpedoAutopilotConfig(heading_gain=5.0, heading_derivative_time=1.0, lookahead=d),
             _torpedo_design, _torpedo_law, _torpedo),
+    "avoid": ("safe sonar range (m)", (2.0, 3.0, 4.0, 6.0), lambda d: AvoidConfig(safe_range=d), _avoid_design,
+              _avoid_law, _avoid_model),
 }
 TUNING_SEED = 1  # episodes for tuning; `marinejax eval` evaluates on another seed (12345)
 CONTROLLERS = tuple(TUNING_GRIDS)
@@ -417,7 +491,8 @@ CONTROLLERS = tuple(TUNING_GRIDS)
 
 def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED, progress=None):
     """The config of controller `name` whose grid value gives the lowest mean window error (the task's
-    evaluation statistic) over `episodes` episodes of `env` from `seed`; returns (config, {value: error (m)}).
+    evaluation statistic; `max_distance` for an episode that ended early) over `episodes` episodes of
+    `env` from `seed`; returns (config, {value: error (m)}).
     Every grid value runs in one jitted call (the gains are traced), so tuning compiles once."""
     from marinejax.control import run_steps
 
@@ -432,18 +507,18 @@ def tune(name: str, env: MarineEnv, episodes: int = 16, seed: int = TUNING_SEED,
     def episode(key, gains):
         controller = law(h, gains)
         state = env.reset(key)
-        _, _, recorded = run_steps(env, controller, state, controller.init(key), steps,
-                                   lambda s: (s.metrics["position_error"], s.done, {k: s.metrics[k] for k in env.error_names}))
+        _, _, recorded = run_steps(env, controller, state, controller.init(key), steps, lambda s: (s.metrics["position_error"], s.done))
         return recorded
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    err, done, others = jax.jit(jax.vmap(jax.vmap(episode, (0, None)), (None, 0)))(keys, stacked)
+    err, done = jax.jit(jax.vmap(jax.vmap(episode, (0, None)), (None, 0)))(keys, stacked)
     time = env.config.control_dt * np.arange(1, steps + 1)
     errors = {}
+    window = np.asarray(env.error_window(time))
     for i, value in enumerate(grid):
-        stats = summarize(env, {"time": time, "error": np.asarray(err[i], float), "done": np.asarray(done[i], float),
-                                **{k: np.asarray(o[i], float) for k, o in others.items()}})
-        errors[value] = stats["position_error_mean_m"]
+        # an episode that ended early (a collision, out of bounds) counts max_distance, as in training
+        per_episode = np.asarray(err[i], float)[:, window].mean(axis=1)
+        errors[value] = float(np.where(np.asarray(done[i]).max(axis=1) > 0, env.config.max_distance, per_episode).mean())
         if progress is not None:
             progress(f"{name.upper()} tuning: {label} {value:g}: mean error {errors[value]:.4f} m")
     return make_config(min(errors, key=errors.get)), errors

@@ -83,15 +83,16 @@ def vehicle_kind(vehicle: str) -> str:
 
 def sensor_settings(vehicle: str) -> dict[str, float]:
     """The vehicle's own sensor parameters: the MJCF's numerics `marinejax:sensors:<sensor>.<field>`
-    (e.g. `marinejax:sensors:dvl.rate_hz`), as overrides of the env config's `sensors` section, whose
-    defaults (`marinejax.plant.sensors`) are a BlueROV2's. Reads the XML only."""
+    (e.g. `marinejax:sensors:dvl.rate_hz`, `marinejax:sensors:sonar.position` with three numbers),
+    as overrides of the env config's `sensors` section, whose defaults (`marinejax.plant.sensors`)
+    are a BlueROV2's. Reads the XML only."""
     prefix = _PREFIX + "sensors:"
     out = {}
     for name, values in _custom_of(vehicle)[1].items():
         if name.startswith(prefix):
-            if isinstance(values, str) or len(values) != 1:
-                raise UserError(f"vehicle {vehicle!r} ({vehicle}.xml): '{name}' must hold one number, got {values!r}")
-            out[name[len(prefix):]] = values[0]
+            if isinstance(values, str) or not values:
+                raise UserError(f"vehicle {vehicle!r} ({vehicle}.xml): '{name}' must hold numbers, got {values!r}")
+            out[name[len(prefix):]] = values[0] if len(values) == 1 else tuple(values)
     return out
 
 
@@ -109,6 +110,7 @@ class VehicleSystem:
     qpos_adr: int = struct.field(pytree_node=False)
     dof_adr: int = struct.field(pytree_node=False)
     contacts: bool = struct.field(pytree_node=False, default=False)
+    layout_ids: tuple[int, ...] = struct.field(pytree_node=False, default=())  # scene geoms placed per episode (`PlantParams.layout`)
 
     @property
     def num_actuators(self) -> int:

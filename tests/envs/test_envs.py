@@ -30,10 +30,11 @@ def episode_fn(env):
 
 # The Fast tracking variants are the tracking class with a faster trajectory config: one stands for
 # all; the path-following tasks are one class over four paths: two stand for all; docking (contacts,
-# the slowest step) one class over two ROVs: its disturbed variant stands for all four.
-@pytest.mark.parametrize("name", [n for n in E.list_envs() if "Fast" not in n and "Following" not in n and "Docking" not in n]
+# the slowest step) one class over two ROVs: its disturbed variant stands for all four; obstacle
+# avoidance (600 steps with a sonar) likewise, on the other ROV.
+@pytest.mark.parametrize("name", [n for n in E.list_envs() if not any(k in n for k in ("Fast", "Following", "Docking", "Obstacle"))]
                          + ["BlueROV2-LemniscateTrackingFastDisturbed", "Remus100-WaypointFollowingDisturbed", "Remus100-LemniscateFollowing",
-                            "BlueROV2Heavy-DockingDisturbed"])
+                            "BlueROV2Heavy-DockingDisturbed", "BlueROV2-ObstacleAvoidanceDisturbed"])
 def test_env_runs_a_full_episode_finite_under_random_and_extreme_actions(name):
     env = E.make(name)
     n = env.config.episode_length

@@ -1,14 +1,16 @@
 """Env throughput: full env steps (thrusters, hydrodynamics, observation, reward) per second.
 
     marinejax bench envs [--envs BlueROV2Heavy-StationKeeping,...] [--batch-sizes 1,256,1024,4096,8192]
-                         [--physics midpoint:1,euler:5]
+                         [--physics midpoint:1,euler:5 | --with KEY=VALUE ...]
 
 Random actions in [−1, 1]; each timed call is a jitted, vmapped `lax.scan` over `--steps` env steps
 (compilation excluded). env steps/s = batch × steps / seconds; real-time factor = env steps/s ×
 control period (simulated seconds per wall second, summed over the batch). Each `--physics` variant
 (integrator:substeps) is the same env with only those two settings changed, timed in the same run;
 the speed-up column compares each with the last variant (by default the first-order 5 × 10 ms
-scheme that was the default before the midpoint integrator).
+scheme that was the default before the midpoint integrator). With `--with KEY=VALUE ...` the two
+variants are instead the env as registered and the env with those settings, the ratio against the
+former: `--with sensors.sonar.enabled=true` prices the sonar, whose ray casts per second are shown.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import time
 from pathlib import Path
 
 from marinejax.benchmarks.common import fmt_rate, parse_batch_sizes, positive, time_calls
+from marinejax.config import parse_key_values
 from marinejax.console import make_console
 from marinejax.errors import UserError
 from marinejax.machine import machine_info
@@ -37,6 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"comma-separated batch sizes (default {DEFAULT_BATCHES})")
     p.add_argument("--physics", type=parse_physics, default=parse_physics(DEFAULT_PHYSICS),
                    help=f"comma-separated integrator:substeps variants to compare (default {DEFAULT_PHYSICS})")
+    p.add_argument("--with", dest="with_", action="append", metavar="KEY=VALUE",
+                   help="compare the env as registered with the env with these settings (instead of --physics)")
     p.add_argument("--steps", type=positive(int), default=20, help="env steps per timed call (default 20, fewer for big batches)")
     p.add_argument("--out", type=Path, default=None, help="also write the results as JSON to this path")
     return p
@@ -79,6 +84,12 @@ def time_env(env, batch: int, steps: int) -> dict:
     return timed
 
 
+def rays_per_step(env) -> int:
+    """Rays an env casts per step: every scene sensor's, each step (a slower sensor holds its reading
+    but is cast anyway, as batched code cannot skip it)."""
+    return sum(int(s.directions.size // 3) for s in env.plant.scene_sensors.sensors.values())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -89,7 +100,14 @@ def main(argv: list[str] | None = None) -> int:
     names = [n.strip() for n in args.envs.split(",") if n.strip()]
     console = make_console()
     try:
-        envs = {(n, integ, sub): E.make(n, integrator=integ, substeps=sub) for n in names for integ, sub in args.physics}
+        if args.with_:
+            with_ = parse_key_values(args.with_, "--with")
+            variants = {"as registered": {}, " ".join(args.with_): with_}
+            base = "as registered"
+        else:
+            variants = {f"{integ}:{sub}": {"integrator": integ, "substeps": sub} for integ, sub in args.physics}
+            base = f"{args.physics[-1][0]}:{args.physics[-1][1]}"
+        envs = {(n, label): E.make(n, **overrides) for n in names for label, overrides in variants.items()}
     except UserError as err:
         print(f"marinejax bench envs: error: {err}", file=sys.stderr)
         return 2
@@ -98,10 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     console.print(f"machine: {info['cpu']} | {info['cpu_count']} cores | jax {info['jax']} {info['backend']} {info['devices']}"
                   + (f" | load average {info['load_average'][0]:.2f} at start" if info["load_average"] else ""))
     start = time.perf_counter()
-    base = args.physics[-1]
     table = Table(title="env steps per second (random actions, full step: thrusters, hydrodynamics, observation, reward)")
-    for col in ("env", "physics", "batch", "steps/call", "env steps/s", "real-time factor",
-                f"vs {base[0]}:{base[1]}", "compile s"):
+    for col in ("env", "variant", "batch", "steps/call", "env steps/s", "real-time factor", "rays/s", f"vs {base}", "compile s"):
         table.add_column(col, justify="left" if col == "env" else "right")
     rows = []
     for name in names:
@@ -109,21 +125,23 @@ def main(argv: list[str] | None = None) -> int:
             steps = max(1, min(args.steps, MAX_ENV_STEPS_PER_CALL // batch))
             # time the baseline first so that every variant's ratio uses a rate measured just before it
             measured = {}
-            for variant in [base] + [v for v in args.physics if v != base]:
-                env = envs[(name, *variant)]
-                t = time_env(env, batch, steps)
-                measured[variant] = (t, batch * steps / t["seconds"])
-            for variant in args.physics:
-                t, rate = measured[variant]
-                c = envs[(name, *variant)].config
+            for label in [base] + [v for v in variants if v != base]:
+                t = time_env(envs[(name, label)], batch, steps)
+                measured[label] = (t, batch * steps / t["seconds"])
+            for label in variants:
+                t, rate = measured[label]
+                env = envs[(name, label)]
+                c = env.config
                 ratio = rate / measured[base][1]
-                rows.append({"env": name, "integrator": variant[0], "substeps": variant[1], "batch": batch, "steps": steps,
+                rays = rate * rays_per_step(env)
+                rows.append({"env": name, "variant": label, "overrides": variants[label], "batch": batch, "steps": steps,
                              "env_steps_per_s": rate, "real_time_factor": rate * c.control_dt, "control_dt": c.control_dt,
-                             "speedup_vs_baseline": ratio, "baseline": f"{base[0]}:{base[1]}", **t})
-                table.add_row(name, f"{variant[0]} {c.control_dt:g} s × {variant[1]}", str(batch), str(steps), fmt_rate(rate),
-                              fmt_rate(rate * c.control_dt), f"{ratio:.2f}×", f"{t['compile_seconds']:.1f}")
+                             "rays_per_s": rays, "speedup_vs_baseline": ratio, "baseline": base, **t})
+                table.add_row(name, f"{label} ({c.integrator} {c.control_dt:g} s × {c.substeps})", str(batch), str(steps),
+                              fmt_rate(rate), fmt_rate(rate * c.control_dt), fmt_rate(rays) if rays else "-", f"{ratio:.2f}×",
+                              f"{t['compile_seconds']:.1f}")
                 if not t["finite"]:
-                    console.print(f"[red]{name} {variant} batch {batch}: non-finite observations[/red]")
+                    console.print(f"[red]{name} {label} batch {batch}: non-finite observations[/red]")
     console.print(table)
     console.print(f"total benchmark time {time.perf_counter() - start:.0f} s")
     if args.out:

@@ -1,4 +1,4 @@
-"""Registered RL tasks: station keeping, docking and circle, helix and lemniscate tracking for ROVs; the
+"""Registered RL tasks: station keeping, docking, obstacle avoidance and circle, helix and lemniscate tracking for ROVs; the
 autopilot and waypoint, circle, helix and lemniscate path following for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
@@ -21,6 +21,7 @@ from marinejax.envs.registry import (
 )
 from marinejax.envs.autopilot import Autopilot, AutopilotConfig
 from marinejax.envs.docking import Docking, DockingConfig
+from marinejax.envs.obstacle_avoidance import ObstacleAvoidance, ObstacleAvoidanceConfig
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.envs.tracking import TrackingConfig, Tracking
@@ -29,6 +30,7 @@ from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
 register_task("Docking", Docking)  # ROVs, in the rov_dock scene
+register_task("ObstacleAvoidance", ObstacleAvoidance)  # ROVs, in the pillars scene, with the sonar
 register_task("Autopilot", Autopilot)  # torpedo AUVs
 register_task("WaypointFollowing", PathFollowing, kind="lines")
 register_task("CircleFollowing", PathFollowing, kind="circle")
@@ -53,6 +55,8 @@ __all__ = [
     "DisturbanceConfig",
     "EnvConfig",
     "MarineEnv",
+    "ObstacleAvoidance",
+    "ObstacleAvoidanceConfig",
     "PathFollowing",
     "PathFollowingConfig",
     "RandomizationConfig",

@@ -64,6 +64,7 @@ from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams, PlantState
 from marinejax.plant.estimator import estimated_state, estimator_init, estimator_update
+from marinejax.plant.scene_sensors import SCENE_SENSOR_FIELDS
 from marinejax.vehicle import Vehicle
 
 
@@ -90,7 +91,8 @@ class RewardConfig:
     speed_scale); speed_penalty (the same tasks): −|speed error| (m/s), a slope at any error;
     heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale), sharp where
     the heading term is flat; impact (tasks in a scene with contacts): −(|contact force| − threshold)/threshold
-    above the task's threshold.
+    above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
+    gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle.
     """
 
     position: float = 2.0
@@ -108,6 +110,8 @@ class RewardConfig:
     heading_precision: float = 0.0
     heading_precision_scale: float = 0.05  # rad
     impact: float = 0.0
+    progress: float = 0.0
+    collision: float = 0.0
 
 
 OBSERVATION_MODES = ("state", "sensors")
@@ -133,6 +137,7 @@ OBSERVATION_FIELDS = {
     "last_action": ("1", "-", "the previous action, in [-1, 1]"),
     "integral_position": ("m s", "body", "leaky integral of the position error"),
     "integral_heading": ("rad s", "-", "leaky integral of the heading error"),
+    **SCENE_SENSOR_FIELDS,
 }
 
 
@@ -244,6 +249,7 @@ class MarineEnv(Env):
         task = self._sample_task(k_task)
         if params is None:
             params = self.plant.sample_params(k_params)
+        params = self.arrange_scene(params, task)  # the episode's obstacles, for a task that places them
         ps = self.plant.init(k_cur, params, self._initial_pose(k_pose, task))
         action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
@@ -257,6 +263,8 @@ class MarineEnv(Env):
         if self.plant.sys.contacts:
             info["contact"] = jnp.zeros(6)
         vs = self.plant.vehicle_state(ps)
+        if self.plant.scene_sensors:  # altimeter, sonar: they see the scene
+            info["scene_sensors"] = self.plant.scene_sensors.init(jax.random.fold_in(k_sensors, 1), self.plant.cast(params, ps))
         if self._sensor_mode:
             suite = self.plant.sensors
             k_draw, k_init = jax.random.split(k_sensors)
@@ -283,6 +291,7 @@ class MarineEnv(Env):
     def _transition(self, pipeline_state: PlantState, info: dict, action: jax.Array):
         """One control step, in the order it happens: (plant state, observation, reward, done, metrics, info)."""
         info = dict(info)
+        k_scene = jax.random.fold_in(info["rng"], 1)
         rng, k_plant = jax.random.split(info["rng"])
         if self._sensor_mode:
             rng, k_sensors = jax.random.split(rng)
@@ -294,6 +303,8 @@ class MarineEnv(Env):
             info["contact"] = self.plant.contact_wrench(ps)
         vs = self.plant.vehicle_state(ps)
         info["task"] = self.advance_task(info["task"], vs)  # the task's own state (a path's closest point)
+        if self.plant.scene_sensors:  # altimeter, sonar: ray casts into the scene
+            info["scene_sensors"] = self.plant.scene_sensors.step(info["scene_sensors"], self.plant.cast(info["params"], ps), k_scene)
         if self._sensor_mode:
             info = self._sense(info, vs, k_sensors)  # sensors, then the vehicle's estimator
         obs, info = self._delay_observation(info, self._observation(vs, info, action, ps, integrate=True))
@@ -318,7 +329,8 @@ class MarineEnv(Env):
     def _sense(self, info: dict, vs: VehicleState, rng: jax.Array) -> dict:
         """Sensor mode: the sensors measure the exact state `vs`; the estimator takes the measurement."""
         suite = self.plant.sensors
-        sensors, m = suite.step(info["sensors"], vs, rng)
+        altimeter = info.get("scene_sensors", {}).get("altimeter")
+        sensors, m = suite.step(info["sensors"], vs, rng, bottom_lock=None if altimeter is None else altimeter.reading.lock)
         return {**info, "sensors": sensors, "estimator": estimator_update(suite, info["estimator"], m)}
 
     def _delay_observation(self, info: dict, obs):
@@ -336,7 +348,7 @@ class MarineEnv(Env):
         cfg = self.config
         out = errors["position_error"] > cfg.max_distance
         nonfinite = 1.0 - finite.astype(jnp.float32)
-        done = jnp.maximum(out.astype(jnp.float32), nonfinite)
+        done = jnp.maximum(jnp.maximum(out.astype(jnp.float32), nonfinite), self.failed(errors).astype(jnp.float32))
         metrics = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
         in_window = self.error_window(time).astype(jnp.float32) / self._window_steps
         metrics["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
@@ -379,6 +391,8 @@ class MarineEnv(Env):
             if self.config.integral_time_constant > 0:
                 integral = info["integral"]
                 obs = jnp.concatenate([obs, quat_to_mat(state.quaternion).T @ integral[:3], integral[3:]])
+            if self.plant.scene_sensors:
+                obs = jnp.concatenate([obs, self.plant.scene_sensors.observe(info["scene_sensors"])])
             return obs
 
         obs = with_integral(measured)
@@ -392,9 +406,13 @@ class MarineEnv(Env):
         e.g. "position_error" (body, m), "velocity" (body, m/s), "integral_position" (body, m s).
         Classical controllers read the observation through these, as a policy would."""
         fields = dict(self.task_observation_fields())
+        n = self._task_observation_size
         if self.config.integral_time_constant > 0:
-            n = self._task_observation_size
             fields.update(integral_position=slice(n, n + 3), integral_heading=slice(n + 3, n + 4))
+            n += 4
+        for name, size in self.plant.scene_sensors.observation_sizes().items():
+            fields[name] = slice(n, n + size)
+            n += size
         return fields
 
     def observation_layout(self) -> list[dict[str, Any]]:
@@ -497,6 +515,16 @@ class MarineEnv(Env):
 
     def _initial_pose(self, rng: jax.Array, task: Any) -> VehicleState:
         raise NotImplementedError
+
+    def arrange_scene(self, params: PlantParams, task: Any) -> PlantParams:
+        """The episode's parameters with the scene's movable geoms placed for `task`
+        (`params.layout`, `PlantConfig.movable_geoms`). Most tasks leave the scene as it is."""
+        return params
+
+    def failed(self, errors: dict[str, jnp.ndarray]) -> jnp.ndarray:
+        """Whether the episode ends now in failure (beside leaving `max_distance` or going
+        non-finite): a collision, for a task that forbids one. Default: never."""
+        return jnp.zeros((), bool)
 
     def advance_task(self, task: Any, vs: VehicleState) -> Any:
         """The task after a step that ended in exact state `vs` (before the errors, observation and

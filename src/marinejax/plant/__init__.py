@@ -12,6 +12,7 @@ from marinejax.plant.disturbance import DisturbanceConfig
 from marinejax.plant.params import PlantParams, apply_params, nominal_params
 from marinejax.plant.plant import Plant, PlantConfig, PlantState
 from marinejax.plant.randomization import RandomizationConfig
+from marinejax.plant.scene_sensors import SceneSensors
 from marinejax.plant.sensors import Measurement, SensorConfig, SensorParams, SensorState, SensorSuite
 
 __all__ = [
@@ -24,6 +25,7 @@ __all__ = [
     "PlantState",
     "Measurement",
     "RandomizationConfig",
+    "SceneSensors",
     "SensorConfig",
     "SensorParams",
     "SensorState",

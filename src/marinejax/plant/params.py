@@ -9,6 +9,7 @@ of it, `plant.randomization`), and `apply_params` is the one place that writes i
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from marinejax.hydro.params import HydroParams
@@ -24,6 +25,7 @@ class PlantParams:
     hydro: HydroParams  # added mass, damping, displaced volume, centre of buoyancy, fluid density
     actuators: tuple  # per actuator group, its kind's episode parameters (a T200Params: gains, lag, voltage)
     disturbance: jnp.ndarray  # (6,) constant external [world-frame force N, body-frame torque N m]
+    layout: jnp.ndarray  # (n, 3) m, world: where the scene's movable geoms are (`PlantConfig.movable_geoms`)
 
     def net_buoyancy(self, gravity: float) -> jnp.ndarray:
         """Buoyancy minus weight, N (positive: the vehicle floats up); gravity in m/s^2."""
@@ -38,6 +40,7 @@ def nominal_params(sys: VehicleSystem) -> PlantParams:
         hydro=sys.hydro,
         actuators=tuple(g.params for g in sys.actuators),
         disturbance=jnp.zeros(6),
+        layout=sys.model.geom_pos[np.asarray(sys.layout_ids, int)],
     )
 
 
@@ -48,5 +51,7 @@ def apply_params(sys: VehicleSystem, params: PlantParams) -> VehicleSystem:
         body_mass=sys.model.body_mass.at[b].set(params.mass),
         body_inertia=sys.model.body_inertia.at[b].set(params.inertia),
     )
+    if sys.layout_ids:
+        model = model.replace(geom_pos=jnp.asarray(model.geom_pos).at[np.asarray(sys.layout_ids)].set(params.layout))
     groups = tuple(g.replace(params=p) for g, p in zip(sys.actuators, params.actuators))
     return sys.replace(model=model, hydro=params.hydro, actuators=groups)

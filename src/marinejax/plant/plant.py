@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+from mujoco import mjx
 
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
@@ -35,8 +36,10 @@ from marinejax.plant.current import CurrentConfig, CurrentState, sample_current,
 from marinejax.plant.disturbance import DisturbanceConfig, body_wrench, sample_disturbance
 from marinejax.plant.params import PlantParams, apply_params, nominal_params
 from marinejax.plant.randomization import RandomizationConfig, sample_dynamics
+from marinejax.plant.rays import SceneRays
+from marinejax.plant.scene_sensors import SceneSensors
 from marinejax.plant.sensors import SensorConfig, SensorSuite
-from marinejax.scene import DEFAULT_SCENE, scene_path
+from marinejax.scene import DEFAULT_SCENE, PREFIX as SCENE_PREFIX, scene_path
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -54,7 +57,9 @@ class PlantConfig:
     current: CurrentConfig = CurrentConfig()
     randomization: RandomizationConfig = RandomizationConfig()
     disturbance: DisturbanceConfig = DisturbanceConfig()
-    sensors: SensorConfig = SensorConfig()  # read by envs in observation_mode "sensors"
+    sensors: SensorConfig = SensorConfig()  # read by envs in observation_mode "sensors"; altimeter and sonar in any mode
+    # names (without "scene:") of scene geoms on the world body that an env places per episode (PlantParams.layout)
+    movable_geoms: tuple[str, ...] = dataclasses.field(default=(), metadata={"variable_length": True})
 
     def __post_init__(self):
         scene_path(self.scene)  # an unknown scene is named with the valid ones here, not at the first reset
@@ -87,14 +92,26 @@ class Plant:
             raise UserError(f"vehicle {vehicle.name!r} was loaded in scene {vehicle.scene!r} but the config asks for "
                             f"{config.scene!r}; load it with load_vehicle(..., scene={config.scene!r}) or pass its name")
         self.vehicle = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle, param_set=config.param_set, scene=config.scene)
-        self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps)
+        self.sys = with_timestep(self.vehicle.sys, config.control_dt / config.substeps).replace(layout_ids=self._movable(config.movable_geoms))
         self.gravity = float(-self.vehicle.mj_model.opt.gravity[2])  # m/s^2
         self.action_size = self.vehicle.num_actuators if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(np.asarray(config.wrench_scale, np.float32))
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
+        self.rays = SceneRays(self.vehicle.mj_model, self.sys.body_id)
+        self.scene_sensors = SceneSensors(config.sensors, config.control_dt)  # the enabled altimeter and sonar
         # The MJX step is traced once per plant and reused wherever it is called (training rollout,
         # evaluation, tests): inlined into each caller's jit it is retraced by each, seconds apiece.
         self._step = jax.jit(self._step_unjitted)
+
+    def _movable(self, names: tuple[str, ...]) -> tuple[int, ...]:
+        m = self.vehicle.mj_model
+        scene = sorted(m.geom(i).name[len(SCENE_PREFIX):] for i in range(m.ngeom)
+                       if m.geom(i).name.startswith(SCENE_PREFIX) and m.geom_bodyid[i] == 0)
+        for name in names:
+            if name not in scene:
+                raise UserError(f"config 'movable_geoms': scene {self.vehicle.scene!r} has no geom {name!r} on its world body; "
+                                f"valid: {scene}")
+        return tuple(m.geom(SCENE_PREFIX + name).id for name in names)
 
     def nominal_params(self) -> PlantParams:
         """The vehicle's parameters as loaded, no disturbance."""
@@ -154,6 +171,21 @@ class Plant:
     def vehicle_state(self, state: PlantState) -> VehicleState:
         """The exact kinematic state: world position and quaternion, body-frame velocities, thrust."""
         return from_physics(self.sys, state.physics)
+
+    def world(self, params: PlantParams, state: PlantState) -> tuple[mjx.Model, mjx.Data]:
+        """The scene as it is now, for sensors and tasks that see it: the MJX model of this episode
+        (its layout placed) and data with every body's and geom's world pose computed at the current
+        state (`mjx.kinematics`)."""
+        model = apply_params(self.sys, params).model
+        return model, mjx.kinematics(model, state.physics.data)
+
+    def cast(self, params: PlantParams, state: PlantState):
+        """The ray cast of the vehicle at `state` into its scene, for the scene sensors:
+        cast(mount (3, m, body), directions (..., 3, unit, body), max_range (m)) → (range (...,) m,
+        hit (...,) bool), as `SceneRays.cast`."""
+        model, data = self.world(params, state)
+        vs = self.vehicle_state(state)
+        return lambda mount, directions, max_range: self.rays.cast(model, data, vs, mount, directions, max_range)
 
     def contact_wrench(self, state: PlantState) -> jnp.ndarray:
         """What the scene's contacts exert on the vehicle (6,): force (N, world frame) and moment about

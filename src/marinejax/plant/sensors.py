@@ -38,6 +38,8 @@ from marinejax.config import check_fields, check_range
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState
+from marinejax.plant.altimeter import AltimeterConfig
+from marinejax.plant.sonar import SonarConfig
 
 _DEG = math.pi / 180.0
 
@@ -177,7 +179,8 @@ class SensorRandomizationConfig:
 
 @dataclasses.dataclass(frozen=True)
 class SensorConfig:
-    """The vehicle's sensors, the estimator its controller runs, and the latencies."""
+    """The vehicle's sensors, the estimator its controller runs, and the latencies; `altimeter` and
+    `sonar` see the scene (`plant.scene_sensors`, off unless enabled)."""
 
     imu: ImuConfig = ImuConfig()
     depth: DepthConfig = DepthConfig()
@@ -187,6 +190,8 @@ class SensorConfig:
     estimator: EstimatorConfig = EstimatorConfig()
     latency: LatencyConfig = LatencyConfig()
     randomization: SensorRandomizationConfig = SensorRandomizationConfig()
+    altimeter: AltimeterConfig = AltimeterConfig()
+    sonar: SonarConfig = SonarConfig()
 
 
 @struct.dataclass
@@ -285,11 +290,14 @@ class SensorSuite:
         )
         return self._measure(state, vs, k_m, first=True)
 
-    def step(self, state: SensorState, vs: VehicleState, rng: jax.Array) -> tuple[SensorState, Measurement]:
-        """Advance one control step and measure the new exact state `vs`."""
-        return self._measure(state.replace(step=state.step + 1), vs, rng, first=False)
+    def step(self, state: SensorState, vs: VehicleState, rng: jax.Array,
+             bottom_lock: jnp.ndarray | None = None) -> tuple[SensorState, Measurement]:
+        """Advance one control step and measure the new exact state `vs`. `bottom_lock` (bool, from
+        the altimeter's beams when it is enabled): without it the DVL gives no velocity."""
+        return self._measure(state.replace(step=state.step + 1), vs, rng, first=False, bottom_lock=bottom_lock)
 
-    def _measure(self, state: SensorState, vs: VehicleState, rng: jax.Array, first: bool) -> tuple[SensorState, Measurement]:
+    def _measure(self, state: SensorState, vs: VehicleState, rng: jax.Array, first: bool,
+                 bottom_lock: jnp.ndarray | None = None) -> tuple[SensorState, Measurement]:
         c, dt, p = self.config, self.control_dt, state.params
         s = p.noise_scale
         k = jax.random.split(rng, 10)
@@ -336,6 +344,8 @@ class SensorSuite:
             dvl_new = update[1] & (jax.random.uniform(k[7]) >= c.dvl.dropout)
             if first:
                 dvl_new = jnp.ones((), bool)
+            if bottom_lock is not None:
+                dvl_new = dvl_new & bottom_lock
             dvl = jnp.where(dvl_new, vs.velocity + jax.random.normal(k[8], (3,)) * std, last.dvl)
 
         # position fix, of the position fix_delay steps ago
