@@ -415,9 +415,7 @@ class AvoidConfig:
 def _avoid_model(env: MarineEnv):
     if "sonar" not in env.observation_fields():
         raise UserError("the avoid controller steers on the sonar; enable it (--env sensors.sonar.enabled=true)")
-    c = env.plant.scene_sensors.sensors["sonar"].config
-    azimuth = np.linspace(-c.horizontal_fov / 2, c.horizontal_fov / 2, c.beams) if c.beams > 1 else np.zeros(1)
-    return _hover(env), azimuth.astype(np.float32)
+    return _hover(env), env.plant.scene_sensors.sensors["sonar"].azimuth.astype(np.float32)
 
 
 def _avoid_design(env: MarineEnv, config: AvoidConfig):

@@ -28,24 +28,35 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
     error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T)
     each of the task's other errors (`MarineEnv.error_names`: heading_error_deg, and e.g. speed_error).
+    In a scene with movable geoms also layout (E, k, 3, m, world: where they were) and layout_size
+    (k, 3, the geoms' MuJoCo sizes); with scene sensors each one's observation, e.g. sonar (E, T,
+    beams, m) and altimeter (E, T, 1, m).
     """
     steps = env.config.episode_length
     others = [name for name in env.error_names if name != "position_error"]
+    scene_sensors = env.plant.scene_sensors
 
     def record(s):
         vs = env.plant.vehicle_state(s.pipeline_state)
+        seen = {name: sensor.observe(s.info["scene_sensors"][name].reading) for name, sensor in scene_sensors.sensors.items()}
         return (vs.position, vs.quaternion, env.target_position(s.info), s.metrics["position_error"], s.done,
-                {name: s.metrics[name] for name in others}, vs.actuators)
+                {name: s.metrics[name] for name in others}, vs.actuators, seen, s.info["params"].layout)
 
     keys = jax.random.split(jax.random.PRNGKey(seed), episodes)
-    _, (pos, quat, target, err, done, errors, actuators) = rollout(env, controller, keys, steps, record)
+    _, (pos, quat, target, err, done, errors, actuators, seen, layout) = rollout(env, controller, keys, steps, record)
     to_np = lambda x: np.asarray(x, dtype=np.float64)  # noqa: E731
-    return {
+    out = {
         "time": env.config.control_dt * np.arange(1, steps + 1),
         "position": to_np(pos), "target": to_np(target), "error": to_np(err),
         "quaternion": to_np(quat), "done": to_np(done), "actuators": to_np(actuators),
         **{name: to_np(e) for name, e in errors.items()},
+        **{name: to_np(r) for name, r in seen.items()},
     }
+    ids = np.asarray(env.plant.sys.layout_ids, int)
+    if ids.size:
+        out["layout"] = to_np(layout[:, 0])
+        out["layout_size"] = np.asarray(env.vehicle.mj_model.geom_size[ids], np.float64)
+    return out
 
 
 def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:

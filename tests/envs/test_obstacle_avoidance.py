@@ -63,19 +63,20 @@ def _with_pile_ahead(env, state, distance: float):
 
 
 def test_the_sonar_sees_a_pile_ahead_and_ramming_it_ends_the_episode(env, resets):
-    """A pile (radius 0.3 m) 5 m ahead of the CG, 4.75 m from the sonar: the four centre beams (at
-    azimuth a) read where they meet its circle, 4.75 cos a − sqrt(0.3² − (4.75 sin a)²); a PID flying
-    straight to the goal behind it hits it: collision, done, the failure's window error, the penalty."""
+    """A pile (radius 0.3 m) 5 m ahead of the CG, 4.75 m from the sonar: the two centre beams of 32
+    (at azimuth a = ±2.1°, 10° down) read where they meet its circle, (4.75 cos a − sqrt(0.3² −
+    (4.75 sin a)²)) / cos 10°;
+    a PID flying straight to the goal behind it hits it: collision, done, the failure's window error,
+    the penalty."""
     state = _with_pile_ahead(env, jax.tree.map(lambda x: x[0], resets), 5.0)
     step = jax.jit(env.step)
     pid = pid_controller(env)
     state = step(state, jnp.zeros(env.action_size))
     ranges = np.asarray(state.info["scene_sensors"]["sonar"].reading.ranges)
-    a = np.radians(np.linspace(-65, 65, 64)[30:34])
-    expected = 4.75 * np.cos(a) - np.sqrt(0.3**2 - (4.75 * np.sin(a)) ** 2)
-    np.testing.assert_allclose(ranges[30:34], expected, atol=0.08)  # 4 x the sonar's noise
-    assert np.all(ranges[27:30] - expected[0] > 0.5) and np.all(ranges[34:37] - expected[-1] > 0.5)  # beside it, it is not there
-    assert np.all(ranges[:8] == 20.0) and np.all(ranges[-8:] == 20.0)
+    a = np.radians(np.linspace(-65, 65, 32)[15:17])
+    expected = (4.75 * np.cos(a) - np.sqrt(0.3**2 - (4.75 * np.sin(a)) ** 2)) / np.cos(np.radians(10.0))  # the ray is 10° down
+    np.testing.assert_allclose(ranges[15:17], expected, atol=0.08)  # 4 x the sonar's noise
+    assert np.all(ranges[:15] == 20.0) and np.all(ranges[17:] == 20.0)  # beside it, nothing
     act = jax.jit(pid.act)
     for _ in range(100):
         state = step(state, act((), state.obs, state.info)[0])

@@ -97,7 +97,7 @@ class Plant:
         self.action_size = self.vehicle.num_actuators if config.action_mode == "thrusters" else 6
         self._wrench_scale = jnp.asarray(np.asarray(config.wrench_scale, np.float32))
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
-        self.rays = SceneRays(self.vehicle.mj_model, self.sys.body_id)
+        self.rays = SceneRays(self.vehicle.mj_model, self.sys.body_id, self.sys.layout_ids)
         self.scene_sensors = SceneSensors(config.sensors, config.control_dt)  # the enabled altimeter and sonar
         # The MJX step is traced once per plant and reused wherever it is called (training rollout,
         # evaluation, tests): inlined into each caller's jit it is retraced by each, seconds apiece.
@@ -183,9 +183,8 @@ class Plant:
         """The ray cast of the vehicle at `state` into its scene, for the scene sensors:
         cast(mount (3, m, body), directions (..., 3, unit, body), max_range (m)) → (range (...,) m,
         hit (...,) bool), as `SceneRays.cast`."""
-        model, data = self.world(params, state)
         vs = self.vehicle_state(state)
-        return lambda mount, directions, max_range: self.rays.cast(model, data, vs, mount, directions, max_range)
+        return lambda mount, directions, max_range: self.rays.cast(params.layout, state.physics.data, vs, mount, directions, max_range)
 
     def contact_wrench(self, state: PlantState) -> jnp.ndarray:
         """What the scene's contacts exert on the vehicle (6,): force (N, world frame) and moment about

@@ -10,12 +10,18 @@ drawn only (the open-water seabed, 10 m down in videos, is not a seabed a sensor
 and never the vehicle's own geoms. MJX casts rays on planes, spheres, capsules, ellipsoids, boxes
 and meshes; cylinders and height fields are invisible to it, so scenes build what sensors must see
 from those shapes. Geoms with a transparent colour are skipped by MJX itself.
+
+Speed: a scene's geoms are static (a scene has no joints) except the ones a task moves per episode
+(`PlantParams.layout`). So the rays are cast into a model of the seen geoms alone, at their world
+poses, computed once here: MJX then tests each ray against those geoms only, and no forward
+kinematics runs per step. Scenes with meshes keep the full model (the mesh data lives there).
 """
 
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 from mujoco import mjx
 
@@ -24,31 +30,76 @@ from marinejax.physics import VehicleState
 
 # geom groups 0-5 the rays see: all but group 1 (drawn only)
 SEEN_GROUPS = (1, 0, 1, 1, 1, 1)
+_PRIMITIVES = {int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE),
+               int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_BOX)}
 
 
 class SceneRays:
-    """Ray casts from one vehicle into its scene; the vehicle's bodies are looked up here, once."""
+    """Ray casts from one vehicle into its scene. `mj_model`: the vehicle in its scene; `body_id`:
+    the vehicle's body; `layout_ids`: the scene geoms placed per episode (`PlantParams.layout`)."""
 
-    def __init__(self, mj_model, body_id: int):
+    def __init__(self, mj_model: mujoco.MjModel, body_id: int, layout_ids: tuple[int, ...] = ()):
         root = mj_model.body_rootid[body_id]
-        self.exclude = tuple(int(b) for b in np.nonzero(mj_model.body_rootid == root)[0])
-        seen = np.asarray(SEEN_GROUPS, bool)[np.clip(mj_model.geom_group, 0, 5)]
-        seen &= ~np.isin(mj_model.geom_bodyid, self.exclude)
-        self.num_geoms = int(seen.sum())  # how many geoms a ray is tested against
+        vehicle = np.isin(mj_model.geom_bodyid, np.nonzero(mj_model.body_rootid == root)[0])
+        seen = np.asarray(SEEN_GROUPS, bool)[np.clip(mj_model.geom_group, 0, 5)] & ~vehicle
+        seen &= mj_model.geom_rgba[:, 3] != 0  # MJX skips transparent geoms
+        seen &= np.isin(mj_model.geom_type, list(_PRIMITIVES | {int(mujoco.mjtGeom.mjGEOM_MESH)}))
+        ids = np.nonzero(seen)[0]
+        self.num_geoms = int(ids.size)  # how many geoms a ray is tested against
+        data = mujoco.MjData(mj_model)
+        mujoco.mj_kinematics(mj_model, data)  # static geoms' world poses (the vehicle's do not matter)
+        if not ids.size:
+            self._model = None
+        elif np.all(np.isin(mj_model.geom_type[ids], list(_PRIMITIVES))):
+            spec = mujoco.MjSpec()
+            spec.add_material(name="seen")  # MJX's ray indexes the material colours even for geoms without one
+            for i in ids:
+                quat = np.zeros(4)
+                mujoco.mju_mat2Quat(quat, data.geom_xmat[i])
+                spec.worldbody.add_geom(type=mujoco.mjtGeom(int(mj_model.geom_type[i])), size=mj_model.geom_size[i],
+                                        pos=data.geom_xpos[i], quat=quat, contype=0, conaffinity=0)
+            lean = spec.compile()
+            self._model = mjx.put_model(lean)
+            self._data = mjx.make_data(lean).replace(geom_xpos=jnp.asarray(lean.geom_pos, jnp.float32),
+                                                     geom_xmat=jnp.asarray(data.geom_xmat[ids].reshape(-1, 3, 3), jnp.float32))
+            index = {int(g): k for k, g in enumerate(ids)}
+            self._layout = [(index[g], k) for k, g in enumerate(layout_ids) if g in index]  # (lean geom, layout row)
+            self._full = False
+        else:  # meshes: cast into the full model, its poses by kinematics at each call
+            self._model, self._full = mjx.put_model(mj_model), True
+            self._exclude = tuple(int(b) for b in np.nonzero(mj_model.body_rootid == root)[0])
+            self._layout_ids = tuple(layout_ids)
 
-    def cast(self, model: mjx.Model, data: mjx.Data, vs: VehicleState, mount: jnp.ndarray, directions: jnp.ndarray,
+    def _scene(self, layout: jnp.ndarray, data: mjx.Data | None):
+        if self._full:
+            model = self._model
+            if self._layout_ids:
+                model = model.replace(geom_pos=jnp.asarray(model.geom_pos).at[np.asarray(self._layout_ids)].set(layout))
+            return model, mjx.kinematics(model, data), dict(geomgroup=SEEN_GROUPS, bodyexclude=self._exclude)
+        d = self._data
+        if self._layout:  # movable geoms are on the world body: their world position is the layout's
+            lean, rows = (np.asarray(x) for x in zip(*self._layout))
+            d = d.replace(geom_xpos=d.geom_xpos.at[lean].set(layout[rows]))
+        return self._model, d, {}
+
+    def cast(self, layout: jnp.ndarray, data: mjx.Data, vs: VehicleState, mount: jnp.ndarray, directions: jnp.ndarray,
              max_range: float) -> tuple[jnp.ndarray, jnp.ndarray]:
         """Beams from the mount point `mount` (3, m, body) along `directions` (..., 3, unit, body) of a
-        vehicle at `vs`, in the scene of `model` and `data` (`Plant.world`). Returns (range (...,) m,
-        clipped to `max_range`; hit (...,) bool: a geom within `max_range`)."""
+        vehicle at `vs`, in the scene with this episode's `layout` (`PlantParams.layout`); `data`: the
+        plant's MJX data (read only for scenes with meshes). Returns (range (...,) m, clipped to
+        `max_range`; hit (...,) bool: a geom within `max_range`)."""
+        shape = directions.shape[:-1]
+        if self._model is None:
+            return jnp.full(shape, max_range, jnp.float32), jnp.zeros(shape, bool)
+        model, scene, options = self._scene(layout, data)
         rot = quat_to_mat(vs.quaternion)
         origin = vs.position + rot @ mount
         flat = directions.reshape(-1, 3) @ rot.T
 
         def one(vec):
-            return mjx.ray(model, data, origin, vec, geomgroup=SEEN_GROUPS, bodyexclude=self.exclude)[0]
+            return mjx.ray(model, scene, origin, vec, **options)[0]
 
-        dist = jax.vmap(one)(flat).reshape(directions.shape[:-1])
+        dist = jax.vmap(one)(flat).reshape(shape)
         hit = (dist >= 0) & (dist <= max_range)
         return jnp.where(hit, dist, max_range), hit
 
@@ -57,9 +108,10 @@ def fan(horizontal: int, horizontal_fov: float, vertical: int, vertical_fov: flo
     """Unit beam directions (horizontal, vertical, 3), body frame FLU, of a fan centred on the x axis
     pitched down by `tilt` (rad): azimuths evenly over `horizontal_fov` (rad, positive to the left),
     elevations evenly over `vertical_fov` (rad). A single beam or row points at the centre."""
-
-    def spread(n, fov):
-        return np.zeros(1) if n == 1 else np.linspace(-fov / 2, fov / 2, n)
-
     az, el = np.meshgrid(spread(horizontal, horizontal_fov), spread(vertical, vertical_fov) - tilt, indexing="ij")
     return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=-1).astype(np.float32)
+
+
+def spread(n: int, fov: float) -> np.ndarray:
+    """n angles (rad) evenly over `fov` centred on zero, from −fov/2; one angle: zero."""
+    return np.zeros(1) if n == 1 else np.linspace(-fov / 2, fov / 2, n)

@@ -4,13 +4,16 @@ checkpoint (`checkpoints`) or of `marinejax.controllers`, written to eval.json."
 
 from __future__ import annotations
 
+import copy
 import json
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from marinejax.train.checkpoints import best_checkpoint, latest_checkpoint, load_policy
-from marinejax.train.paths import plot_paths
+from marinejax.train.paths import plot_paths, plot_sonar
 from marinejax.statistics import rollout_controller, rollout_policy, summarize
 
 
@@ -63,14 +66,30 @@ def evaluate_controller(env_name: str, controller: str, out_dir: Path | None = N
 def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path, video: bool) -> dict[str, Any]:
     summary = {**summary, **summarize(env, result)}
     summary["plot"] = str(plot_paths(result, title, out_dir / "paths.png"))
+    if "sonar" in result:
+        summary["sonar"] = _write_sonar(env, result, title, out_dir)
     if video:
         from marinejax.render import render_video
 
+        model = env.vehicle.mj_model
+        if "layout" in result:  # the scene as it was in episode 0
+            model = copy.deepcopy(model)
+            model.geom_pos[np.asarray(env.plant.sys.layout_ids, int)] = result["layout"][0]
         try:
-            summary["video"] = str(render_video(env.vehicle.mj_model, result["position"][0], result["quaternion"][0], result["target"][0],
+            summary["video"] = str(render_video(model, result["position"][0], result["quaternion"][0], result["target"][0],
                                                 1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr,
                                                 result["actuators"][0], env.vehicle.actuator_names))
         except RuntimeError as err:
             summary["video_error"] = str(err)
     (out_dir / "eval.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _write_sonar(env, result: dict, title: str, out_dir: Path) -> dict[str, str]:
+    """The sonar's range images: every episode's in sonar.npz (ranges (E, T, beams), m; time, s;
+    azimuth, rad, positive to the left) and episode 0's as a PNG."""
+    sonar = env.plant.scene_sensors.sensors["sonar"]
+    azimuth = sonar.azimuth
+    np.savez_compressed(out_dir / "sonar.npz", ranges=result["sonar"].astype(np.float32), time=result["time"], azimuth=azimuth)
+    png = plot_sonar(result, np.degrees(azimuth), sonar.config.max_range, f"{title}: sonar", out_dir / "sonar.png")
+    return {"ranges": str(out_dir / "sonar.npz"), "image": str(png)}

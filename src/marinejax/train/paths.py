@@ -27,6 +27,11 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
              label="target" if station else "reference")
     ax2.plot(p[:, 0], p[:, 1], "C0", lw=1.5, label="vehicle")
     ax2.plot(p[0, 0], p[0, 1], "go", label="start")
+    if "layout" in result:  # the episode's obstacles near the path, as circles of their radius (not the parked ones)
+        span = np.ptp(np.concatenate([p[:, :2], r[:, :2]]), axis=0).max() + 5.0
+        for (x, y, _), size in zip(result["layout"][episode], result["layout_size"]):
+            if np.hypot(x - p[0, 0], y - p[0, 1]) < 2 * span:
+                ax2.add_patch(plt.Circle((x, y), size[0], color="0.4", alpha=0.7))
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.set_xlabel("x (m)"), ax2.set_ylabel("y (m)"), ax2.set_title("top view")
     ax2.legend()
@@ -38,6 +43,27 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
     ax3.set_yscale("log"), ax3.set_xlabel("time (s)"), ax3.set_ylabel("position error (m)")
     ax3.legend()
     fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def plot_sonar(result: dict[str, np.ndarray], azimuth_deg: np.ndarray, max_range: float, title: str, out: Path,
+               episode: int = 0) -> Path:
+    """PNG: the sonar's range image over an episode (time down, bearing across, range as colour)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ranges, t = result["sonar"][episode], result["time"]
+    fig, ax = plt.subplots(figsize=(7, 5))
+    image = ax.imshow(ranges, aspect="auto", origin="upper", cmap="viridis_r", vmin=0.0, vmax=max_range,
+                      extent=(azimuth_deg[0], azimuth_deg[-1], t[-1], t[0]))
+    ax.set_xlabel("bearing (°, positive to the left)"), ax.set_ylabel("time (s)"), ax.set_title(title)
+    ax.invert_xaxis()  # left on the left, as the vehicle sees it
+    fig.colorbar(image, ax=ax, label="range (m)")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
