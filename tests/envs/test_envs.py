@@ -28,12 +28,15 @@ def episode_fn(env):
     return jax.jit(jax.vmap(run))
 
 
+# A Disturbed variant runs its task's code and more (currents, randomized physics, a disturbance):
+# it stands for the plain one, except for one task per vehicle kind (station keeping, the autopilot).
 # The Fast tracking variants are the tracking class with a faster trajectory config: one stands for
 # all; the path-following tasks are one class over four paths: two stand for all; docking (contacts,
-# the slowest step) one class over two ROVs: its disturbed variant stands for all four; obstacle
-# avoidance (600 steps with a sonar) likewise, on the other ROV.
-@pytest.mark.parametrize("name", [n for n in E.list_envs() if not any(k in n for k in ("Fast", "Following", "Docking", "Obstacle"))]
-                         + ["BlueROV2-LemniscateTrackingFastDisturbed", "Remus100-WaypointFollowingDisturbed", "Remus100-LemniscateFollowing",
+# the slowest step) and obstacle avoidance (600 steps with a sonar): one ROV each.
+@pytest.mark.parametrize("name", [n for n in E.list_envs() if n.endswith("Disturbed") and not any(
+                                      k in n for k in ("Fast", "Following", "Docking", "Obstacle"))]
+                         + ["BlueROV2Heavy-StationKeeping", "Remus100-Autopilot",
+                            "BlueROV2-LemniscateTrackingFastDisturbed", "Remus100-WaypointFollowingDisturbed", "Remus100-LemniscateFollowing",
                             "BlueROV2Heavy-DockingDisturbed", "BlueROV2-ObstacleAvoidanceDisturbed"])
 def test_env_runs_a_full_episode_finite_under_random_and_extreme_actions(name):
     env = E.make(name)

@@ -111,3 +111,12 @@ def test_bad_layouts_are_named():
         marinejax.make(ENV, obstacles=20)
     with pytest.raises(UserError, match="no geom 'pillar99'.*valid"):
         marinejax.make(ENV, movable_geoms=("pillar99",), obstacles=1)
+
+
+def test_surfacing_ends_the_episode_in_failure(env, resets):
+    """No free surface is modelled: a vehicle shallower than 0.5 m has left the water, a failure."""
+    state = jax.tree.map(lambda x: x[0], resets)
+    ps = state.pipeline_state
+    shallow = ps.replace(physics=ps.physics.replace(data=ps.physics.data.replace(qpos=ps.physics.data.qpos.at[2].set(-0.3))))
+    state = env.step(state.replace(pipeline_state=shallow), jnp.zeros(env.action_size))
+    assert float(state.metrics["surfaced"]) == 1.0 and float(state.done) == 1.0 and float(state.metrics["collision"]) == 0.0

@@ -171,28 +171,30 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
     assert proc.returncode == 2 and "could not be read" in proc.stderr and "Traceback" not in proc.stderr
 
 
-SAC_TINY = ["--algo", "sac", "--timesteps", "2400", "--episodes", "2", "--no-video", "--env", "episode_length=20",
-            *[arg for opt in ("num_envs=8", "batch_size=32", "min_replay_size=400", "num_evals=3", "num_eval_envs=4", "hidden=(16,)")
-              for arg in ("--algo-opts", opt)]]
-
-
-def test_sac_trains_evaluates_and_exports_like_ppo(tmp_path):
-    """`--algo sac` writes the same run directory (its checkpoints, best.json, the final evaluation);
-    the export reproduces its deterministic policy; resuming is refused with the reason."""
+@pytest.mark.slow
+def test_sac_learns_and_its_run_evaluates_exports_and_refuses_resume(tmp_path):
+    """`--algo sac` for 70 k env steps of its tuned settings (about a minute here; the full 0.5 M
+    reach a few mm, README): the evaluation error falls far below the untrained policy's; the run
+    directory is PPO's (checkpoints, best.json, the final evaluation); the export reproduces its
+    deterministic policy; resuming is refused with the reason."""
     import jax
 
     from marinejax.export import load_numpy_policy
     from marinejax.train.checkpoints import load_policy
 
     run = tmp_path / "sac"
-    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(run), *SAC_TINY)
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(run), "--algo", "sac", "--timesteps", "70000",
+                     "--algo-opts", "num_evals=2", "--episodes", "4", "--no-video", timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "(SAC, 2,400 env steps, 8 envs" in proc.stdout
+    assert "(SAC, 70,000 env steps" in proc.stdout
     config = json.loads((run / "config.json").read_text())
-    assert config["algorithm"] == "sac" and config["sac"]["hidden"] == [16] and "ppo" not in config
+    assert config["algorithm"] == "sac" and "ppo" not in config
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    untrained, trained = records[0]["eval/episode_window_error"], records[-1]["eval/episode_window_error"]
+    assert records[-1]["step"] >= 70_000 and trained < 0.3 * untrained, (untrained, trained)
     checkpoints = sorted(p.name for p in (run / "checkpoints").iterdir())
     assert len(checkpoints) == 2 and all((run / "checkpoints" / c / "sac_network_config.json").exists() for c in checkpoints)
-    assert int(checkpoints[-1]) >= 2400 and json.loads((run / "summary.json").read_text())["evaluation"]["episodes"] == 2
+    assert json.loads((run / "summary.json").read_text())["evaluation"]["episodes"] == 4
 
     out = tmp_path / "policy.npz"
     assert marinejax("export", str(run), "--format", "npz", "--out", str(out)).returncode == 0

@@ -92,7 +92,8 @@ class RewardConfig:
     heading_precision (tasks that use it): exp(−|heading error| / heading_precision_scale), sharp where
     the heading term is flat; impact (tasks in a scene with contacts): −(|contact force| − threshold)/threshold
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
-    gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle.
+    gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle;
+    proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond.
     """
 
     position: float = 2.0
@@ -112,6 +113,7 @@ class RewardConfig:
     impact: float = 0.0
     progress: float = 0.0
     collision: float = 0.0
+    proximity: float = 0.0
 
 
 OBSERVATION_MODES = ("state", "sensors")

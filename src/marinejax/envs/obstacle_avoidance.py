@@ -11,7 +11,10 @@ the piles are seen only through the forward-looking sonar (on by default; `senso
 A collision: a pile's axis closer than its radius plus a collision capsule's radius to that
 capsule's axis (the vehicle's own collision geoms, `class="collision"` in its MJCF), measured
 horizontally (the piles are vertical and span every depth the task uses). It ends the episode
-(`failed`), so its `window_error` is `max_distance`, and costs the reward term `collision`.
+(`failed`), so its `window_error` is `max_distance`, and costs the reward term `collision`; coming
+within `proximity_range` of a pile costs `proximity` (linear in the gap). Surfacing (shallower
+than `surface_depth`: no free surface is modelled, so above it the vehicle would fly) also ends
+the episode in failure.
 
 Observation (body frame FLU), size 14 + actions + sonar beams:
   [0:3]   goal − position, m
@@ -20,8 +23,9 @@ Observation (body frame FLU), size 14 + actions + sonar beams:
   [8:11]  linear velocity, m/s;  [11:14] angular velocity, rad/s
   [14:14+n] last action;  then the sonar's range per beam, m (`sonar` field)
 Reward: distance terms (`position`, `precision`), `progress` (speed towards the goal, m/s), the
-heading towards the goal (the sonar looks ahead), `collision`, effort and smoothness.
-Success: the mean distance to the goal over the last second below `goal_radius`, with no collision.
+heading towards the goal (the sonar looks ahead), `collision`, `proximity`, effort and smoothness.
+Success: the mean distance to the goal over the last second below `goal_radius`, with no collision
+and without surfacing.
 """
 
 from __future__ import annotations
@@ -63,14 +67,16 @@ class ObstacleAvoidanceConfig(EnvConfig):
     field_width: float = 8.0  # m, across the start-goal line
     clearance: float = 2.0  # m along the line from the start and from the goal without a pile centre
     goal_radius: float = 1.0  # m: success threshold
+    surface_depth: float = 0.5  # m: shallower than this the vehicle has surfaced, a failure (no free surface is modelled)
+    proximity_range: float = 0.5  # m: closer to a pile than this costs the reward term `proximity`
     sensors: SensorConfig = SensorConfig(sonar=SonarConfig(enabled=True))
     reward: RewardConfig = RewardConfig(position=1.0, position_scale=10.0, precision=1.0, precision_scale=1.0, progress=1.0,
-                                        collision=10.0, heading=0.3)
+                                        collision=10.0, proximity=1.0, heading=0.3)
 
     def __post_init__(self):
         super().__post_init__()
         check_range("goal_distance", self.goal_distance, positive=True)
-        for name in ("goal_depth", "field_width", "clearance", "goal_radius"):
+        for name in ("goal_depth", "field_width", "clearance", "goal_radius", "surface_depth", "proximity_range"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
         if not 0 <= self.obstacles <= len(self.movable_geoms):
@@ -92,7 +98,7 @@ class GoalTask:
 class ObstacleAvoidance(MarineEnv):
     config_class = ObstacleAvoidanceConfig
     error_window_description = "last 1 s of each episode"
-    error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m"})
+    error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m", "surfaced": ""})
 
     def __init__(self, vehicle, config: ObstacleAvoidanceConfig):
         super().__init__(vehicle, config)
@@ -167,10 +173,12 @@ class ObstacleAvoidance(MarineEnv):
 
     def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
         gap = jnp.min(self.clearance(vs, info["params"].layout))
-        return {**super().errors(vs, info), "collision": (gap < 0).astype(jnp.float32), "clearance": gap}
+        surfaced = vs.position[2] > -self.config.surface_depth
+        return {**super().errors(vs, info), "collision": (gap < 0).astype(jnp.float32), "clearance": gap,
+                "surfaced": surfaced.astype(jnp.float32)}
 
     def failed(self, errors):
-        return errors["collision"] > 0
+        return (errors["collision"] > 0) | (errors["surfaced"] > 0)
 
     def reward_terms(self, vs: VehicleState, info, action):
         task: GoalTask = info["task"]
@@ -182,6 +190,7 @@ class ObstacleAvoidance(MarineEnv):
             "precision": jnp.exp(-d / r.precision_scale),
             "progress": task.progress / self.config.control_dt,
             "collision": -(gap < 0).astype(jnp.float32),
+            "proximity": -jnp.clip(1.0 - gap / self.config.proximity_range, 0.0, 1.0),
             **self._attitude_terms(vs, self._bearing(vs, task), action, info["last_action"]),
         }
 
