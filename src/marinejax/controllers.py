@@ -455,7 +455,11 @@ def _avoid_law(model, gains) -> Controller:
         far = distance > 1.0
         point = jnp.where(far, point, goal[:2])
         bearing = jnp.where(far, bearing, jnp.arctan2(*obs[f["heading"]]))
-        steered = obs.at[f["position_error"]].set(jnp.concatenate([point, goal[2:]]))
+        # the body-frame offset whose world vertical is the goal's (up: world up in the body frame), so
+        # that a tilted vehicle steering at a point 2 m ahead does not read the goal's distance as height
+        up = obs[f["up"]]
+        vertical = (up @ goal - up[0] * point[0] - up[1] * point[1]) / jnp.maximum(up[2], 0.5)
+        steered = obs.at[f["position_error"]].set(jnp.concatenate([point, vertical[None]]))
         steered = steered.at[f["heading"]].set(jnp.stack([jnp.sin(bearing), jnp.cos(bearing)]))
         return pid.act(carry, steered, info)
 

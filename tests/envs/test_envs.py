@@ -29,12 +29,14 @@ def episode_fn(env):
 
 
 # A Disturbed variant runs its task's code and more (currents, randomized physics, a disturbance):
-# it stands for the plain one, except for one task per vehicle kind (station keeping, the autopilot).
+# it stands for the plain one, except for one task per vehicle kind (station keeping, the autopilot);
+# the BlueROV2's tracking tasks are the Heavy's with another vehicle file: its fast lemniscate stands for them.
 # The Fast tracking variants are the tracking class with a faster trajectory config: one stands for
 # all; the path-following tasks are one class over four paths: two stand for all; docking (contacts,
 # the slowest step) and obstacle avoidance (600 steps with a sonar): one ROV each.
 @pytest.mark.parametrize("name", [n for n in E.list_envs() if n.endswith("Disturbed") and not any(
-                                      k in n for k in ("Fast", "Following", "Docking", "Obstacle"))]
+                                      k in n for k in ("Fast", "Following", "Docking", "Obstacle"))
+                                  and not (n.startswith("BlueROV2-") and "Tracking" in n)]
                          + ["BlueROV2Heavy-StationKeeping", "Remus100-Autopilot",
                             "BlueROV2-LemniscateTrackingFastDisturbed", "Remus100-WaypointFollowingDisturbed", "Remus100-LemniscateFollowing",
                             "BlueROV2Heavy-DockingDisturbed", "BlueROV2-ObstacleAvoidanceDisturbed"])
