@@ -8,23 +8,28 @@ pure and jit/vmap-able; names and sizes are resolved at construction.
 
 One step (`_transition`), in order: the action is clipped to [−1, 1] and, in sensor mode, delayed
 (`_delay_action`); the plant advances its actuators and physics; the task updates its own state
-(`advance_task`); in sensor mode the sensors measure and the estimator updates (`_sense`); the task
-observes (`observe`, plus the integral and privileged parts: `_observation`), delayed in sensor
-mode (`_delay_observation`); the task's reward terms and errors are computed; `_termination` ends
-the episode beyond `max_distance` or on a non-finite state and makes the metrics.
+(`advance_task`); the enabled scene sensors (altimeter, sonar) cast their rays into the scene; in
+sensor mode the navigation sensors measure and the estimator updates (`_sense`); the task
+observes (`observe`, plus the integral, the scene sensors' readings and the privileged parts:
+`_observation`), delayed in sensor mode (`_delay_observation`); the task's reward terms and errors
+are computed; `_termination` ends the episode beyond `max_distance`, on a non-finite state or when
+the task says it `failed` (a collision), and makes the metrics.
 
 State.pipeline_state is the `PlantState` (MJX data, thruster lag, ocean current). State.info holds
 all episode randomness, so a full reset re-draws it:
   rng, time (s since episode start), task (the target or trajectory), params (`PlantParams`: the
   physical parameters and disturbance of this episode), last_action, integral (see below), and in a
   scene with contacts (`config.scene`) contact: what the scene exerts on the vehicle after the step
-  (`Plant.contact_wrench`: force N, world; moment N m about the CG, body), for the task's hooks.
-`reset(rng, params)` starts an episode with parameters of your own instead of drawn ones.
+  (`Plant.contact_wrench`: force N, world; moment N m about the CG, body), for the task's hooks;
+  with scene sensors enabled, scene_sensors: each one's last reading, by name.
+`reset(rng, params)` starts an episode with parameters of your own instead of drawn ones (a task
+that places obstacles still places them: `arrange_scene`).
 
-Observation: an array (the task's observation, then the integral below). With
-`privileged_observation=True` it is a dict: "state" is that array (what the policy sees) and
-"privileged_state" appends what no sensor gives (current, disturbance, the episode's parameters,
-`Plant.privileged`) for an asymmetric critic (Brax PPO: `value_obs_key="privileged_state"`).
+Observation: an array (the task's observation, then the integral below, then the enabled scene
+sensors' readings: fields "altimeter" and "sonar"). With `privileged_observation=True` it is a
+dict: "state" is that array (what the policy sees) and "privileged_state" appends what no sensor
+gives (current, disturbance, the episode's parameters, `Plant.privileged`) for an asymmetric critic
+(Brax PPO: `value_obs_key="privileged_state"`).
 
 Observation modes (`observation_mode`): "state" observes the exact state. "sensors" observes what
 the vehicle's sensors give (`plant/sensors.py`: IMU, depth, attitude, DVL, position fix) through the
