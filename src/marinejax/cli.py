@@ -261,8 +261,8 @@ def _bench(args: argparse.Namespace, rest: list[str]) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    """What exists: vehicles (with kind and actuators), tasks (with the kinds they are for), envs,
-    classical controllers and shipped policies."""
+    """What exists: vehicles (with kind and actuators), scenes, tasks (with the kinds they are for),
+    envs, classical controllers and shipped policies."""
     from marinejax.controllers import CONTROLLERS
     from marinejax.envs import list_envs
     from marinejax.envs.registry import list_tasks
@@ -275,6 +275,10 @@ def _list(args: argparse.Namespace) -> int:
         for name in list_vehicles():
             v = load_vehicle(name)
             print(f"  {name:<20} {vehicle_kind(name):<8} {v.num_actuators} actuators: {', '.join(v.actuator_names)}")
+    if what in ("all", "scenes"):
+        from marinejax.scene import list_scenes
+
+        print(f"scenes (marinejax train ENV --env scene=NAME): {', '.join(list_scenes())}")
     if what in ("all", "tasks"):
         print("tasks (<Vehicle>-<Task>; each also <Task>Disturbed):")
         for task, kinds in list_tasks().items():
@@ -362,7 +366,7 @@ def build_parser() -> argparse.ArgumentParser:
     idf.add_argument("--fit-thruster-gain", action="store_true", help="also fit the thruster gain (not separable from the masses; see the docs)")
 
     ls = sub.add_parser("list", parents=[common], help="what exists: vehicles, tasks, envs, controllers, shipped policies")
-    ls.add_argument("what", nargs="?", default="all", choices=["all", "vehicles", "tasks", "envs", "controllers", "policies"])
+    ls.add_argument("what", nargs="?", default="all", choices=["all", "vehicles", "scenes", "tasks", "envs", "controllers", "policies"])
 
     bench = sub.add_parser("bench", add_help=False, parents=[common],
                            help="benchmarks: `marinejax bench physics|envs|training|clients [flags]` (-h for their flags)")
