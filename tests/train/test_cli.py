@@ -193,7 +193,9 @@ def test_sac_learns_and_its_run_evaluates_exports_and_refuses_resume(tmp_path):
     untrained, trained = records[0]["eval/episode_window_error"], records[-1]["eval/episode_window_error"]
     assert records[-1]["step"] >= 70_000 and trained < 0.3 * untrained, (untrained, trained)
     checkpoints = sorted(p.name for p in (run / "checkpoints").iterdir())
-    assert len(checkpoints) == 2 and all((run / "checkpoints" / c / "sac_network_config.json").exists() for c in checkpoints)
+    # Brax SAC saves after each evaluation but the first: one checkpoint with num_evals=2
+    assert len(checkpoints) == 1 and int(checkpoints[0]) >= 70_000
+    assert (run / "checkpoints" / checkpoints[0] / "sac_network_config.json").exists()
     assert json.loads((run / "summary.json").read_text())["evaluation"]["episodes"] == 4
 
     out = tmp_path / "policy.npz"
