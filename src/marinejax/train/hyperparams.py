@@ -80,7 +80,7 @@ _TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollow
 # seeds 0-4).
 _TUNED["Autopilot"] = (dataclasses.replace(_STATION, num_timesteps=20_000_000, discounting=0.99), {})
 # Obstacle avoidance (10 Hz, 60 s episodes, the sonar in the observation): a 10 s horizon as the
-# autopilot's; seeds 0-2 succeed in 91-95 % of the evaluation episodes after 10 M steps (README).
+# autopilot's; seeds 0-4 succeed in 91-95 % of the evaluation episodes after 10 M steps (README).
 _TUNED["ObstacleAvoidance"] = (dataclasses.replace(_STATION, num_timesteps=10_000_000, discounting=0.99, num_evals=10), {})
 _TUNED.update({f"{task}Fast": _TUNED[task] for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.items())})
