@@ -467,6 +467,18 @@ class MarineEnv(Env):
         metrics["out_of_bounds"] = out
         return metrics
 
+    def _pose_observation_fields(self) -> dict[str, slice]:
+        """The layout of `_pose_observation` (tasks that hold or reach a point)."""
+        n = self.action_size
+        return {"position_error": slice(0, 3), "up": slice(3, 6), "heading": slice(6, 8), "velocity": slice(8, 11),
+                "angular_velocity": slice(11, 14), "last_action": slice(14, 14 + n)}
+
+    def _pose_observation(self, vs: VehicleState, position: jnp.ndarray, yaw, action: jnp.ndarray) -> jnp.ndarray:
+        """Towards a point `position` (m, world) at heading `yaw` (rad): the position error in the
+        body frame, `_attitude_observation` and the last action."""
+        rot = quat_to_mat(vs.quaternion)
+        return jnp.concatenate([rot.T @ (position - vs.position), self._attitude_observation(vs, yaw), action])
+
     def _attitude_observation(self, vs: VehicleState, target_yaw) -> jnp.ndarray:
         """World up in the body frame (3), sin and cos of the heading error (2), body linear (m/s) and
         angular (rad/s) velocity (3 + 3)."""

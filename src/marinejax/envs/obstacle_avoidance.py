@@ -151,14 +151,11 @@ class ObstacleAvoidance(MarineEnv):
         return jnp.arctan2(to_goal[1], to_goal[0])
 
     def task_observation_fields(self) -> dict[str, slice]:
-        n = self.action_size
-        return {"position_error": slice(0, 3), "up": slice(3, 6), "heading": slice(6, 8), "velocity": slice(8, 11),
-                "angular_velocity": slice(11, 14), "last_action": slice(14, 14 + n)}
+        return self._pose_observation_fields()
 
     def observe(self, vs: VehicleState, info, action):
         task: GoalTask = info["task"]
-        rot = quat_to_mat(vs.quaternion)
-        return jnp.concatenate([rot.T @ (task.position - vs.position), self._attitude_observation(vs, self._bearing(vs, task)), action])
+        return self._pose_observation(vs, task.position, self._bearing(vs, task), action)
 
     def clearance(self, vs: VehicleState, piles: jnp.ndarray) -> jnp.ndarray:
         """Horizontal gap (m) between each pile's surface and the nearest collision capsule's, (piles,)."""

@@ -25,7 +25,6 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.envs.base import EnvConfig, MarineEnv
-from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
 
@@ -63,14 +62,11 @@ class StationKeeping(MarineEnv):
         return self._random_start(rng, task.position, task.yaw)
 
     def task_observation_fields(self) -> dict[str, slice]:
-        n = self.action_size
-        return {"position_error": slice(0, 3), "up": slice(3, 6), "heading": slice(6, 8), "velocity": slice(8, 11),
-                "angular_velocity": slice(11, 14), "last_action": slice(14, 14 + n)}
+        return self._pose_observation_fields()
 
     def observe(self, vs: VehicleState, info, action):
         task: StationTarget = info["task"]
-        rot = quat_to_mat(vs.quaternion)
-        return jnp.concatenate([rot.T @ (task.position - vs.position), self._attitude_observation(vs, task.yaw), action])
+        return self._pose_observation(vs, task.position, task.yaw, action)
 
     def reward_terms(self, vs: VehicleState, info, action):
         task: StationTarget = info["task"]

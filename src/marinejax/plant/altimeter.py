@@ -24,8 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.config import check_fields
-from marinejax.errors import UserError
+from marinejax.plant.rays import check_ray_sensor
 
 _DEG = math.pi / 180.0
 
@@ -45,13 +44,7 @@ class AltimeterConfig:
     rate_hz: float = 10.0  # (assumed; the A50 pings at 2-15 Hz depending on altitude)
 
     def __post_init__(self):
-        check_fields("sensors.altimeter", self)
-        if self.beams < 1 or not self.min_range < self.max_range or not self.rate_hz > 0 or not self.dropout < 1:
-            raise UserError(f"config 'sensors.altimeter' needs beams >= 1, min_range < max_range, rate_hz > 0 and "
-                            f"dropout < 1; got beams={self.beams}, min_range={self.min_range}, max_range={self.max_range}, "
-                            f"rate_hz={self.rate_hz}, dropout={self.dropout}")
-        if len(self.position) != 3:
-            raise UserError(f"config 'sensors.altimeter.position' must be 3 numbers (m, body FLU), got {self.position!r}")
+        check_ray_sensor("sensors.altimeter", self)
 
 
 @struct.dataclass

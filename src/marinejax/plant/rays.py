@@ -25,6 +25,8 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from marinejax.config import check_fields
+from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
 
@@ -115,3 +117,17 @@ def fan(horizontal: int, horizontal_fov: float, vertical: int, vertical_fov: flo
 def spread(n: int, fov: float) -> np.ndarray:
     """n angles (rad) evenly over `fov` centred on zero, from −fov/2; one angle: zero."""
     return np.zeros(1) if n == 1 else np.linspace(-fov / 2, fov / 2, n)
+
+
+def check_ray_sensor(section: str, config, counts: tuple[str, ...] = ("beams",)) -> None:
+    """Validate a ray-cast sensor's config (`section`: its dotted key): every number finite and
+    >= 0, the ray `counts` >= 1, min_range < max_range, rate_hz > 0, dropout < 1, a 3-number mount
+    `position`; UserError naming the values otherwise."""
+    check_fields(section, config)
+    values = {n: getattr(config, n) for n in (*counts, "min_range", "max_range", "rate_hz", "dropout")}
+    if (any(values[n] < 1 for n in counts) or not config.min_range < config.max_range or not config.rate_hz > 0
+            or not config.dropout < 1):
+        raise UserError(f"config '{section}' needs {', '.join(f'{n} >= 1' for n in counts)}, min_range < max_range, "
+                        f"rate_hz > 0 and dropout < 1; got {', '.join(f'{k}={v}' for k, v in values.items())}")
+    if len(config.position) != 3:
+        raise UserError(f"config '{section}.position' must be 3 numbers (m, body FLU), got {config.position!r}")

@@ -29,9 +29,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.config import check_fields
-from marinejax.errors import UserError
-from marinejax.plant.rays import fan, spread
+from marinejax.plant.rays import check_ray_sensor, fan, spread
 
 _DEG = math.pi / 180.0
 
@@ -54,13 +52,7 @@ class SonarConfig:
     rate_hz: float = 10.0  # (assumed)
 
     def __post_init__(self):
-        check_fields("sensors.sonar", self)
-        if self.beams < 1 or self.rows < 1 or not self.min_range < self.max_range or not self.rate_hz > 0 or not self.dropout < 1:
-            raise UserError(f"config 'sensors.sonar' needs beams >= 1, rows >= 1, min_range < max_range, rate_hz > 0 and "
-                            f"dropout < 1; got beams={self.beams}, rows={self.rows}, min_range={self.min_range}, "
-                            f"max_range={self.max_range}, rate_hz={self.rate_hz}, dropout={self.dropout}")
-        if len(self.position) != 3:
-            raise UserError(f"config 'sensors.sonar.position' must be 3 numbers (m, body FLU), got {self.position!r}")
+        check_ray_sensor("sensors.sonar", self, counts=("beams", "rows"))
 
 
 @struct.dataclass
