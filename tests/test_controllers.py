@@ -67,7 +67,7 @@ def test_lqr_gain_stabilises_the_hover_model_of_both_vehicles():
 
 
 # Each controller holds station and tracks a slow circle (0.2-0.5 m/s) on the nonlinear simulator;
-# the bounds are about twice what they reach (README), on other episodes than the tuning's.
+# the bounds are about twice what they reach (docs/controllers.md), on other episodes than the tuning's.
 @pytest.mark.parametrize("env_name, controller, median_below", [
     ("BlueROV2Heavy-StationKeeping", pid_controller, 0.002),
     pytest.param("BlueROV2Heavy-StationKeeping", lqr_controller, 0.002, marks=pytest.mark.slow),

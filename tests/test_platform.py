@@ -19,6 +19,18 @@ def test_import_prints_nothing():
     assert proc.stdout == "" and proc.stderr == ""
 
 
+def test_import_leaves_jax_uninitialised_so_that_processes_can_still_join_jax_distributed():
+    # jax.distributed.initialize must come before JAX's backend starts; an array made at import
+    # time (a module constant) would start it.
+    code = ("import socket, jax, marinejax, marinejax.cli, marinejax.train.runner\n"
+            "s = socket.socket(); s.bind(('127.0.0.1', 0)); port = s.getsockname()[1]; s.close()\n"
+            "jax.distributed.initialize(f'127.0.0.1:{port}', num_processes=1, process_id=0)\n"
+            "print(jax.process_count(), marinejax.vehicle.mjx_device() == jax.local_devices()[0])")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split()[-2:] == ["1", "True"]
+
+
 def test_device_put_replicated_shim_stacks_one_copy_per_device_for_pmap():
     devices = jax.local_devices()
     tree = {"w": np.arange(6.0).reshape(2, 3), "n": np.int32(7), "nested": (jnp.ones(4),)}

@@ -42,7 +42,7 @@ import marinejax.actuators as actuators
 from marinejax.errors import UserError
 from marinejax.frames import quat_integrate, quat_to_mat
 from marinejax.hydro.forces import added_mass_at_cg, hydro_terms
-from marinejax.vehicle import Vehicle, VehicleSystem
+from marinejax.vehicle import Vehicle, VehicleSystem, mjx_device
 
 CommandMode = Literal["thrusters", "wrench"]
 COMMAND_MODES = ("thrusters", "wrench")
@@ -132,7 +132,7 @@ def initial_state(
 
 def to_physics(sys: VehicleSystem, state: VehicleState) -> PhysicsState:
     """MJX data for a VehicleState (single vehicle; vmap for batches)."""
-    data = mjx.make_data(sys.model)
+    data = mjx.make_data(sys.model, device=mjx_device())
     rot = quat_to_mat(state.quaternion)
     qa, da = sys.qpos_adr, sys.dof_adr
     qpos = data.qpos.at[qa : qa + 3].set(state.position).at[qa + 3 : qa + 7].set(state.quaternion)

@@ -15,6 +15,7 @@ import dataclasses
 import functools
 from pathlib import Path
 
+import jax
 import mujoco
 import numpy as np
 from flax import struct
@@ -29,6 +30,13 @@ from marinejax.scene import DEFAULT_SCENE, compose, contacts_enabled
 
 _PREFIX = "marinejax:"
 _RIGID_FIELDS = {"mass": 1, "inertia": 3}
+
+
+
+def mjx_device() -> jax.Device:
+    """The device MJX models and data are placed on: this process's first local device. (MJX's
+    default is `jax.devices()[0]`, which belongs to process 0 when several processes train together.)"""
+    return jax.local_devices()[0]
 
 
 def model_dir() -> Path:
@@ -252,7 +260,7 @@ def load_vehicle(name: str | Path, param_set: str | None = None, scene: str | Pa
         raise UserError(f"{where} in scene {scene!r}: MuJoCo chose a sparse mass matrix ({m.nv} degrees of freedom); "
                         "contacts need the dense one: set <option jacobian=\"dense\"/>")
     sys = VehicleSystem(
-        model=mjx.put_model(m),
+        model=mjx.put_model(m, device=mjx_device()),
         hydro=hydro,
         actuators=actuators,
         body_id=body,

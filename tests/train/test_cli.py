@@ -133,6 +133,8 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
     [
         (["train", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate=-1"], "'learning_rate' must be > 0"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate_schedule=cosine"],
+         "'learning_rate_schedule' must be one of ['none', 'adaptive_kl'], got 'cosine'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--env", "reward.efort=1"], "unknown config key 'reward.efort'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "num_envs"], "--ppo expects KEY=VALUE"),
         (["eval", "/no/such/run"], "no such run directory or checkpoint"),
@@ -174,7 +176,7 @@ def test_corrupt_checkpoint_is_reported(run_dir, tmp_path):
 @pytest.mark.slow
 def test_sac_learns_and_its_run_evaluates_exports_and_refuses_resume(tmp_path):
     """`--algo sac` for 70 k env steps of its tuned settings (about a minute here; the full 0.5 M
-    reach a few mm, README): the evaluation error falls far below the untrained policy's; the run
+    reach a few mm, docs/results.md): the evaluation error falls far below the untrained policy's; the run
     directory is PPO's (checkpoints, best.json, the final evaluation); the export reproduces its
     deterministic policy; resuming is refused with the reason."""
     import jax
@@ -242,6 +244,28 @@ def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_
     assert "median error" in proc.stdout
     again = marinejax(*args)
     assert again.returncode == 0 and again.stdout.count("finished earlier, reusing") == 2
+
+
+@pytest.mark.slow
+def test_bench_training_profile_splits_a_training_step_into_parts_that_sum_to_the_measured_step(tmp_path):
+    tiny = [a for a in TINY if a not in ("--episodes", "4")]  # 1600 env steps, 3 evaluations
+    proc = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--out-dir", str(tmp_path), *tiny)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((tmp_path / "profile-BlueROV2Heavy-StationKeeping.json").read_text())
+    parts, shares = result["parts_s"], result["shares"]
+    assert set(parts) == {"env", "policy", "normalizer", "loss_and_gradient", "optimizer", "other"}
+    assert all(parts[name] > 0 for name in parts if name != "other")
+    assert sum(parts.values()) == pytest.approx(result["training_step_s"], rel=1e-9)
+    assert sum(shares.values()) == pytest.approx(1.0, rel=1e-9)
+    assert result["env_steps_per_training_step"] == 8 * 2 * 5  # batch_size x num_minibatches x unroll_length
+    assert result["training_env_steps_per_s"] == pytest.approx(80 / result["training_step_s"])
+    recipe = result["recipe_s"]
+    assert recipe["training"] == pytest.approx(math.ceil(1600 / 80) * result["training_step_s"])
+    assert recipe["evaluations"] == pytest.approx(3 * result["evaluation_s"]) and recipe["compilation"] > 0
+    assert sum(result["recipe_shares"].values()) == pytest.approx(1.0)
+    assert "PPO loss and gradient" in proc.stdout and "training step, measured in ppo.train" in proc.stdout
+    refused = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--algo", "sac", timeout=120)
+    assert refused.returncode == 2 and "--profile profiles PPO" in refused.stderr
 
 
 @pytest.mark.slow

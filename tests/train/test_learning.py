@@ -1,4 +1,4 @@
-"""Training really learns, and the shipped policy reproduces the README's figure (SAC's learning:
+"""Training really learns, and the shipped policy reproduces its figure in docs/results.md (SAC's learning:
 `tests/train/test_cli.py`, with its run directory)."""
 
 import json
@@ -33,7 +33,7 @@ def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
 @pytest.mark.slow
 def test_tuned_station_keeping_recipe_lands_on_a_held_out_seed(tmp_path):
     """`marinejax train BlueROV2Heavy-StationKeeping --seed 5` from scratch (about 3.5 minutes here)
-    reaches <= 2 cm mean error over the last second, on a seed outside the README's 0-4 (seed 6 too,
+    reaches <= 2 cm mean error over the last second, on a seed outside docs/results.md's 0-4 (seed 6 too,
     when this was written; one seed keeps CI's time)."""
     from marinejax.benchmarks.training import run_seed
 

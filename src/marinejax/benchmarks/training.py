@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting for every run (--algo ppo)")
     p.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for every run")
     p.add_argument("--episodes", type=positive(int), default=64, help="evaluation episodes per seed (default 64)")
+    p.add_argument("--profile", action="store_true",
+                   help="instead of training over seeds, show where a PPO training step's time goes (env, policy, "
+                        "loss and gradient, optimizer, evaluation, compilation); writes profile-<ENV>.json")
     return p
 
 
@@ -174,6 +177,9 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     if args.ppo and args.algo != "ppo":
         print(f"marinejax bench training: error: --ppo applies to --algo ppo; use --algo-opts for {args.algo}", file=sys.stderr)
         return 2
+    if args.profile and args.algo != "ppo":
+        print(f"marinejax bench training: error: --profile profiles PPO's training step, not {args.algo}'s", file=sys.stderr)
+        return 2
     agent = {**parse_key_values(args.ppo, "--ppo"), **parse_key_values(args.algo_opts, "--algo-opts")}
     if args.timesteps:
         agent["num_timesteps"] = args.timesteps
@@ -181,6 +187,8 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     out_dir = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     info = machine_info()
+    if args.profile:
+        return _profile(args, agent, env_overrides, info)
     print(f"marinejax bench training: {args.envs}, seeds 0..{args.seeds - 1}, target {args.target_error} m -> {out_dir}", flush=True)
     print(f"machine: {info['cpu']} | {info['cpu_count']} cores | jax {info['jax']} {info['backend']}", flush=True)
     start = time.perf_counter()
@@ -209,6 +217,17 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
               f"{a['final_error_met_target']:>10d} of {len(a['seeds'])} {100 * a['success_worst']:>15.0f} % "
               f"{a['wall_median_s']:8.0f} / {a['wall_worst_s']:.0f} s {to_target:>22s}")
     print(f"total {time.perf_counter() - start:.0f} s; results in {out_dir / 'results.json'} and results.csv")
+    return 0
+
+
+def _profile(args: argparse.Namespace, agent: dict, env_overrides: dict, info: dict) -> int:
+    from marinejax.benchmarks.profile import profile, report
+
+    print(f"machine: {info['cpu']} | {info['cpu_count']} cores | jax {info['jax']} {info['backend']}", flush=True)
+    for env_name in args.envs:
+        result = profile(env_name, agent, env_overrides)
+        print(report(result), flush=True)
+        (args.out_dir / f"profile-{env_name}.json").write_text(json.dumps({"machine": info, **result}, indent=2))
     return 0
 
 

@@ -28,7 +28,7 @@ Observation (body frame FLU unless stated), size 17 + 2 × number of actions (+ 
   [17+n:17+2n] last action
   then the base's leaky integral (`base`; absent if integral_time_constant = 0) of the depth error,
   as a world-z vector in the body frame, and of the heading error (rad s): it removes the steady
-  offsets (seed 4 of PPO went from 1.48 m and 10.9° to 0.08 m and 1.4° with it, README).
+  offsets (seed 4 of PPO went from 1.48 m and 10.9° to 0.08 m and 1.4° with it, docs/results.md).
 The statistics: `position_error` is the depth error (m), with `heading_error_deg` and
 `speed_error` (m/s); the evaluation window is the last `settled` s of each segment.
 """
@@ -70,7 +70,7 @@ class AutopilotConfig(CruisingConfig):
     # depth error e; heading: broad (1 + cos)/2 plus exp(−|error|/0.5 rad), which still has a slope at
     # 90°; speed: exp(−|error|/0.5 m/s) plus a linear penalty, without which PPO cruises at full speed
     # (the fins' authority) and ignores the speed set-point; no upright term (a torpedo pitches to
-    # change depth). Chosen on seed 0 (README).
+    # change depth). Chosen on seed 0 (docs/results.md).
     reward: RewardConfig = RewardConfig(upright=0.0, heading=1.0, heading_precision=3.0, heading_precision_scale=0.5,
                                         speed=2.0, speed_scale=0.5, speed_penalty=1.0)
 

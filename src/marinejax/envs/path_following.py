@@ -60,7 +60,7 @@ class PathFollowingConfig(CruisingConfig):
     # pitches to change depth. The autopilot's linear speed penalty (reward.speed_penalty = 1) holds
     # the commanded speed on every seed (within 8 mm/s) but left 2 of 5 seeds of waypoint and of
     # circle following at 0.3-0.6 m cross-track; without it one waypoint seed of five cruises
-    # 1.06 m/s too fast and all ten stay within 0.1 m (README).
+    # 1.06 m/s too fast and all ten stay within 0.1 m (docs/results.md).
     reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0)
 
     def __post_init__(self):

@@ -21,6 +21,7 @@ water; with contacts the added mass goes into MuJoCo's mass matrix instead and M
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 import marinejax.hydro.hull as hull_terms
@@ -114,8 +115,8 @@ def current_in_body(rot: jnp.ndarray, current_world: jnp.ndarray, omega: jnp.nda
 
 # C_A entries (row, column) the REMUS reference drops: its surge row and the Munk moments
 # (Fossen 2021, section 8.4.2; `HydroParams.munk_terms` False)
-_MUNK_ROWS = jnp.array([4, 0, 4, 2, 5, 0, 5, 1])
-_MUNK_COLS = jnp.array([0, 4, 2, 4, 0, 5, 1, 5])
+_MUNK_ROWS = np.array([4, 0, 4, 2, 5, 0, 5, 1])
+_MUNK_COLS = np.array([0, 4, 2, 4, 0, 5, 1, 5])
 
 
 def transfer_matrix(r: jnp.ndarray) -> jnp.ndarray:

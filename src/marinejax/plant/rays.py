@@ -29,6 +29,7 @@ from marinejax.config import check_fields
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
+from marinejax.vehicle import mjx_device
 
 # geom groups 0-5 the rays see: all but group 1 (drawn only)
 SEEN_GROUPS = (1, 0, 1, 1, 1, 1)
@@ -61,14 +62,14 @@ class SceneRays:
                 spec.worldbody.add_geom(type=mujoco.mjtGeom(int(mj_model.geom_type[i])), size=mj_model.geom_size[i],
                                         pos=data.geom_xpos[i], quat=quat, contype=0, conaffinity=0)
             lean = spec.compile()
-            self._model = mjx.put_model(lean)
-            self._data = mjx.make_data(lean).replace(geom_xpos=jnp.asarray(lean.geom_pos, jnp.float32),
+            self._model = mjx.put_model(lean, device=mjx_device())
+            self._data = mjx.make_data(lean, device=mjx_device()).replace(geom_xpos=jnp.asarray(lean.geom_pos, jnp.float32),
                                                      geom_xmat=jnp.asarray(data.geom_xmat[ids].reshape(-1, 3, 3), jnp.float32))
             index = {int(g): k for k, g in enumerate(ids)}
             self._layout = [(index[g], k) for k, g in enumerate(layout_ids) if g in index]  # (lean geom, layout row)
             self._full = False
         else:  # meshes: cast into the full model, its poses by kinematics at each call
-            self._model, self._full = mjx.put_model(mj_model), True
+            self._model, self._full = mjx.put_model(mj_model, device=mjx_device()), True
             self._exclude = tuple(int(b) for b in np.nonzero(mj_model.body_rootid == root)[0])
             self._layout_ids = tuple(layout_ids)
 

@@ -1,7 +1,7 @@
 """Training settings, kept apart from the env configs: the algorithm (PPO or SAC, `ppo`/`sac`) and
 its settings, tuned values per task; the env, network and saved config a training config stands for.
 
-`tuned_config(env_name)` gives the settings the README's results come from; any field can be
+`tuned_config(env_name)` gives the settings the results in docs/results.md come from; any field can be
 overridden (`with_overrides`), and a misspelled key is an error.
 """
 
@@ -51,7 +51,7 @@ class TrainConfig:
         return ALGORITHMS[self.algorithm]
 
 
-# Tuned on BlueROV2Heavy-StationKeeping on the 2-core CPU and judged over seeds 0-4 (README results).
+# Tuned on BlueROV2Heavy-StationKeeping on the 2-core CPU and judged over seeds 0-4 (docs/results.md).
 # With the second-order physics the env costs little, so 12 M env steps fit in about 3.5 minutes
 # (about 80 k env steps/s after compilation). With 4 M steps some seeds stay in a 0.25 m orbit
 # around the target; every seed tried broke out between 2.5 M and 7 M steps. Tracking learns in
@@ -61,7 +61,7 @@ _STATION = PPOConfig(
     discounting=0.98, init_noise_std=0.5, num_evals=20,
 )
 # SAC, the same for every task: 0.5 M env steps (about 4 minutes on the 2-core CPU). On station
-# keeping seed 0 reached 5 mm after 0.23 M steps (README: seeds 0-4).
+# keeping seed 0 reached 5 mm after 0.23 M steps (docs/results.md: seeds 0-4).
 _SAC = SACConfig(num_timesteps=500_000)
 _TRACKING = dataclasses.replace(_STATION, num_timesteps=4_000_000, num_evals=10)
 _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
@@ -72,15 +72,15 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 }
 # Torpedo path following (10 Hz, 60 s episodes): the station-keeping recipe for 8 M steps. On the
 # circle, seed 0 was at 0.04 m after 3.2 M steps and at best 0.034 m (with the cross-track integral
-# observed; without it, 0.50 m at 6.3 M steps). README: seeds 0-4.
+# observed; without it, 0.50 m at 6.3 M steps). docs/results.md: seeds 0-4.
 _PATH = dataclasses.replace(_STATION, num_timesteps=8_000_000, num_evals=16)
 _TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing")})
 # The torpedo autopilot (120 s episodes of two set-points): a 10 s horizon (γ 0.99 at 10 Hz) and
-# 20 M steps; the seeds reach 0.1 m of depth error after 9.5-17 M steps (one never did: README,
+# 20 M steps; the seeds reach 0.1 m of depth error after 9.5-17 M steps (one never did: docs/results.md,
 # seeds 0-4).
 _TUNED["Autopilot"] = (dataclasses.replace(_STATION, num_timesteps=20_000_000, discounting=0.99), {})
 # Obstacle avoidance (10 Hz, 60 s episodes, the sonar in the observation): a 10 s horizon as the
-# autopilot's; seeds 0-4 succeed in 91-95 % of the evaluation episodes after 10 M steps (README).
+# autopilot's; seeds 0-4 succeed in 91-95 % of the evaluation episodes after 10 M steps (docs/tasks.md).
 _TUNED["ObstacleAvoidance"] = (dataclasses.replace(_STATION, num_timesteps=10_000_000, discounting=0.99, num_evals=10), {})
 _TUNED.update({f"{task}Fast": _TUNED[task] for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.items())})
@@ -88,7 +88,7 @@ _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.it
 # under the disturbance torque it pitches (median 29°), and with the shared recipe its error was a
 # 1.4 Hz sway/roll oscillation with a 95th percentile over 60 mm on some seeds. Ten times the
 # smoothness and angular-velocity weights damp it, and 128-128 networks fit the wider range of
-# attitudes (README: seeds 0-4).
+# attitudes (docs/results.md: seeds 0-4).
 _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "BlueROV2-StationKeepingDisturbed": (
         dataclasses.replace(_STATION, policy_hidden=(128, 128), value_hidden=(128, 128)),

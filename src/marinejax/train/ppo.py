@@ -20,6 +20,11 @@ from marinejax.errors import UserError
 from marinejax.train.brax_agents import deterministic_policy, save_checkpoint
 
 NETWORK_CONFIG = "ppo_network_config.json"
+# Brax's learning-rate schedules: "none" (constant `learning_rate`) or "adaptive_kl" (after every
+# update epoch the rate is divided by 1.5 where the policy's mean KL divergence exceeded 2 ×
+# `desired_kl` and multiplied by 1.5 where it fell under half of it, within 1e-5–1e-2; the schedule
+# of rsl_rl's legged-robot PPO).
+LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -32,7 +37,9 @@ class Config:
     batch_size: int = 256
     num_minibatches: int = 8
     num_updates_per_batch: int = 4
-    learning_rate: float = 3e-4
+    learning_rate: float = 3e-4  # the initial rate with "adaptive_kl"
+    learning_rate_schedule: str = "none"  # LEARNING_RATE_SCHEDULES
+    desired_kl: float = 0.01  # the KL divergence "adaptive_kl" aims at, per update
     entropy_cost: float = 1e-3
     discounting: float = 0.97
     gae_lambda: float = 0.95
@@ -60,6 +67,11 @@ class Config:
         for name in ("learning_rate", "discounting", "gae_lambda", "clipping_epsilon", "reward_scaling"):
             if not getattr(self, name) > 0:
                 raise UserError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
+        if self.learning_rate_schedule not in LEARNING_RATE_SCHEDULES:
+            raise UserError(f"ppo 'learning_rate_schedule' must be one of {list(LEARNING_RATE_SCHEDULES)}, "
+                            f"got {self.learning_rate_schedule!r}")
+        if not self.desired_kl > 0:
+            raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
         if not (self.discounting < 1 and self.gae_lambda <= 1):
             raise UserError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
 
@@ -100,6 +112,8 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         num_minibatches=config.num_minibatches,
         num_updates_per_batch=config.num_updates_per_batch,
         learning_rate=config.learning_rate,
+        learning_rate_schedule=config.learning_rate_schedule.upper(),
+        desired_kl=config.desired_kl,
         entropy_cost=config.entropy_cost,
         discounting=config.discounting,
         gae_lambda=config.gae_lambda,
