@@ -22,8 +22,6 @@ import math
 import time
 from typing import Any
 
-from marinejax.errors import UserError
-
 PARTS = ("env", "policy", "normalizer", "loss_and_gradient", "optimizer")
 PART_LABELS = {
     "env": "env steps (physics, sensors, task)",
@@ -38,7 +36,8 @@ SHORT_EPOCHS = 3  # training epochs of the short real run (the first two compile
 
 
 def _parts(env, agent, network_factory) -> dict[str, Any]:
-    """Each part of a training step jitted alone and timed: seconds per call and calls per step."""
+    """Each part of a training step jitted alone and timed: its seconds per training step (one
+    call's best time × the calls one step makes)."""
     import jax
     import jax.numpy as jnp
     import optax
@@ -140,9 +139,7 @@ def profile(env_name: str, agent_overrides: dict | None = None, env_overrides: d
     measured step, an evaluation, the compilation, and the whole recipe projected from them."""
     from marinejax.train.hyperparams import build_env, tuned_config, with_overrides
 
-    config = with_overrides(tuned_config(env_name), agent=agent_overrides or {}, env=env_overrides or {})
-    if config.algorithm != "ppo":
-        raise UserError("--profile profiles PPO's training step; SAC has no profile yet")
+    config = with_overrides(tuned_config(env_name, "ppo"), agent=agent_overrides or {}, env=env_overrides or {})
     agent, module = config.agent, config.module
     env = build_env(config)
     parts = _parts(env, agent, module.network_factory(agent, env.observation_size))
