@@ -93,6 +93,7 @@ def _train(args: argparse.Namespace) -> int:
 
     console = make_console()
     target = _check_target(args.target_error)
+    _initialize_processes(args)  # before anything starts JAX's backend
     if args.resume:
         if args.env_name or args.ppo or args.algo or args.algo_opts or args.env or args.timesteps or args.run_dir or args.randomize:
             raise UserError("--resume takes only the run directory: the run's own settings are reused")
@@ -121,8 +122,17 @@ def _train(args: argparse.Namespace) -> int:
         if (run_dir / "config.json").exists():
             raise UserError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it")
     devices = check_devices(args.devices, config.agent)
+    processes = f" × {jax.process_count()} processes" if jax.process_count() > 1 else ""
     console.print(f"[bold]marinejax train[/bold] {config.env} → {run_dir}  ({config.algorithm.upper()}, "
-                  f"{config.agent.num_timesteps:,} env steps, {config.agent.num_envs} envs on {devices} {jax.default_backend()} device(s); compiling takes about a minute)")
+                  f"{config.agent.num_timesteps:,} env steps, {config.agent.num_envs} envs on {devices} {jax.default_backend()} "
+                  f"device(s){processes}; compiling takes about a minute)")
+    if jax.process_count() > 1:
+        # Connect the processes' collectives now, after every process has checked the run directory
+        # and before process 0 writes it: Gloo gives up after 30 s when one process reaches its first
+        # collective that much before another (in Brax, process 0 first evaluates the initial policy).
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices("marinejax train")
     with TrainingProgress(console, config) as progress:
         try:
             summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
@@ -132,6 +142,9 @@ def _train(args: argparse.Namespace) -> int:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
             return 130
+    if jax.process_index() > 0:
+        console.print(f"process {jax.process_index()} of {jax.process_count()}: done; process 0 wrote {run_dir}")
+        return 0
     if summary.get("time_to_target"):
         t = summary["time_to_target"]
         console.print(f"target {target} m met at {t['step']:,} env steps, {t['elapsed']:.0f} s "
@@ -139,13 +152,36 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.train.curves import plot_learning_curve
 
     plot_learning_curve(run_dir)
-    if not args.no_eval:
+    if jax.process_count() > 1 and not args.no_eval:
+        # loading a checkpoint through orbax waits for every process, and the others have finished
+        console.print(f"several processes: evaluate the run in one process, `marinejax eval {run_dir}`")
+    elif not args.no_eval:
         from marinejax.train.evaluate import evaluate_finished_run
 
         console.print("final evaluation (deterministic policy) ...")
         _print_eval(console, evaluate_finished_run(run_dir, summary, episodes=args.episodes, video=not args.no_video))
     console.print(f"run directory: {run_dir} (config.json, metrics.jsonl, checkpoints/, curve.png, summary.json, eval/)")
     return 0
+
+
+def _initialize_processes(args: argparse.Namespace) -> None:
+    """`jax.distributed.initialize` from --coordinator, --num-processes and --process-id (all or
+    none); on CPUs the processes' collectives go through Gloo."""
+    given = [args.coordinator is not None, args.num_processes is not None, args.process_id is not None]
+    if not any(given):
+        return
+    if not all(given):
+        raise UserError("training with several processes needs --coordinator HOST:PORT, --num-processes N and --process-id I together")
+    host, _, port = args.coordinator.rpartition(":")
+    if not host or not port.isdigit():
+        raise UserError(f"--coordinator must be HOST:PORT (e.g. 10.0.0.1:1234), got {args.coordinator!r}")
+    if args.num_processes < 1 or not 0 <= args.process_id < args.num_processes:
+        raise UserError(f"--process-id must be in 0..{args.num_processes - 1} and --num-processes >= 1, "
+                        f"got {args.process_id} of {args.num_processes}")
+    import jax
+
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    jax.distributed.initialize(args.coordinator, num_processes=args.num_processes, process_id=args.process_id)
 
 
 def _print_eval(console, result: dict[str, Any]) -> None:
@@ -319,6 +355,11 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--devices", type=int, metavar="N",
                     help="train on the first N local devices (default: all of jax.local_devices()); the env batch is "
                          "split over them")
+    tr.add_argument("--coordinator", metavar="HOST:PORT",
+                    help="train with several processes (hosts): the address of process 0, reachable from every process; "
+                         "with --num-processes and --process-id (jax.distributed.initialize)")
+    tr.add_argument("--num-processes", type=int, metavar="N", help="the number of processes training together (--coordinator)")
+    tr.add_argument("--process-id", type=int, metavar="I", help="this process's index, 0..N-1 (--coordinator); process 0 writes the run")
     tr.add_argument("--randomize", action="store_true", help="per-episode domain randomization (sets --env randomization.enabled=true)")
     tr.add_argument("--episodes", type=int, default=64, help="episodes of the final evaluation (default 64)")
     tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")

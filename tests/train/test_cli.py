@@ -5,11 +5,13 @@ import math
 import os
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 
@@ -133,6 +135,9 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
     [
         (["train", "BlueROV2Heavy-Hover"], "unknown env 'BlueROV2Heavy-Hover'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate=-1"], "'learning_rate' must be > 0"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--coordinator", "127.0.0.1:1234"], "--num-processes N and --process-id I together"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--coordinator", "127.0.0.1:1234", "--num-processes", "2", "--process-id", "2"],
+         "--process-id must be in 0..1"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate_schedule=cosine"],
          "'learning_rate_schedule' must be one of ['none', 'adaptive_kl'], got 'cosine'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--env", "reward.efort=1"], "unknown config key 'reward.efort'"),
@@ -315,3 +320,60 @@ def test_list_shows_what_exists_and_eval_offers_every_controller():
     assert [a for a in ev._actions if a.dest == "controller"][0].choices == list(CONTROLLERS)
     tr = build_parser()._subparsers._group_actions[0].choices["train"]
     assert [a for a in tr._actions if a.dest == "algo"][0].choices == list(ALGORITHMS)
+
+
+# Training with several processes (jax.distributed)
+def test_a_checkpoint_written_by_one_of_several_processes_is_brax_s_own(tmp_path, monkeypatch):
+    # Brax saves from process 0 only and orbax's save, as Brax calls it, waits for every process:
+    # with several processes marinejax writes the same files from process 0 alone.
+    import marinejax as mj
+    from marinejax.train import ppo
+
+    env = mj.make("BlueROV2Heavy-StationKeeping")
+    config = ppo.Config(policy_hidden=(8,), value_hidden=(8,))
+    network = ppo.network_factory(config, env.observation_size)(env.observation_size, env.action_size)
+    from brax.training.acme import running_statistics, specs
+
+    keys = jax.random.split(jax.random.PRNGKey(0))
+    normalizer = running_statistics.init_state(specs.Array((env.observation_size,), np.dtype("float32")))
+    params = (normalizer, network.policy_network.init(keys[0]), network.value_network.init(keys[1]))
+    ppo.save(tmp_path / "one", 100, params, env, config)
+    monkeypatch.setattr(jax, "process_count", lambda: 2)  # as process 0 of two sees it
+    ppo.save(tmp_path / "alone", 100, params, env, config)
+    one, alone = tmp_path / "one" / "000000000100", tmp_path / "alone" / "000000000100"
+    assert (one / ppo.NETWORK_CONFIG).read_text() == (alone / ppo.NETWORK_CONFIG).read_text()
+    monkeypatch.undo()
+    for a, b in zip(jax.tree.leaves(ppo.load(one)), jax.tree.leaves(ppo.load(alone)), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.slow
+def test_two_processes_train_one_policy_and_process_0_writes_the_run(tmp_path):
+    run = tmp_path / "run"
+    port = _free_port()
+    env = {"PYTHONUNBUFFERED": "1", "XDG_CACHE_HOME": str(CACHE_HOME)}
+    procs = [subprocess.Popen([sys.executable, "-m", "marinejax.cli", "train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(run),
+                               *TINY, "--no-video", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2", "--process-id", str(i)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, **env})
+             for i in (0, 1)]
+    outs = [p.communicate(timeout=900) for p in procs]
+    for p, (out, err) in zip(procs, outs):
+        assert p.returncode == 0, err[-3000:]
+    assert "8 envs on 1 cpu device(s) × 2 processes" in outs[0][0]
+    assert "process 1 of 2: done" in outs[1][0] and f"evaluate the run in one process, `marinejax eval {run}`" in outs[0][0]
+    # Brax ends by asserting that every process holds the same parameters: the gradients were averaged
+    config = json.loads((run / "config.json").read_text())
+    assert config["processes"] == 2
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    assert len(records) == 3 and records[-1]["step"] >= 1600  # one process's evaluations, not two
+    checkpoints = sorted((run / "checkpoints").iterdir())
+    assert len(checkpoints) == 2 and (checkpoints[-1] / "ppo_network_config.json").exists()
+    assert json.loads((run / "summary.json").read_text())["status"] == "finished"
+    proc = marinejax("eval", str(run), "--no-video", "--episodes", "4")  # then, in one process
+    assert proc.returncode == 0 and (run / "eval" / "eval.json").exists(), proc.stderr[-3000:]

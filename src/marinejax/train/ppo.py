@@ -137,7 +137,8 @@ def save(path: Path, step: int, params, env, config: Config) -> None:
     """A Brax PPO checkpoint `path/<step:012d>` (normalizer, policy, value params + network config)."""
     from brax.training.agents.ppo import checkpoint
 
-    save_checkpoint(checkpoint, network_factory(config, env.observation_size), path, step, params, env, config.normalize_observations)
+    save_checkpoint(checkpoint, network_factory(config, env.observation_size), path, step, params, env, config.normalize_observations,
+                    NETWORK_CONFIG)
 
 
 def load(path: Path):

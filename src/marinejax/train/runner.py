@@ -47,14 +47,16 @@ def machine() -> dict[str, Any]:
 
 
 def check_devices(devices: int | None, agent: PPOConfig | SACConfig) -> int:
-    """The number of local devices to train on (None: all); raises ValueError naming the valid range."""
+    """The number of local devices to train on (None: all); raises ValueError naming the valid range.
+    With several processes (`jax.distributed`) each trains on as many and the envs are split over all."""
     available = jax.local_device_count()
     n = available if devices is None else devices
     if not 1 <= n <= available:
         raise UserError(f"devices must be between 1 and the {available} local device(s) "
                          f"({', '.join(str(d) for d in jax.local_devices())}), got {devices}")
-    if agent.num_envs % n:
-        raise UserError(f"num_envs ({agent.num_envs}) must be a multiple of the number of devices ({n})")
+    if agent.num_envs % (n * jax.process_count()):
+        raise UserError(f"num_envs ({agent.num_envs}) must be a multiple of the number of devices ({n}"
+                        + (f" × {jax.process_count()} processes" if jax.process_count() > 1 else "") + ")")
     return n
 
 
@@ -83,6 +85,7 @@ def save_config(run_dir: Path, config: TrainConfig, env: MarineEnv) -> None:
         "action_size": env.action_size,
         "versions": {p: version(p) for p in ("marinejax", "jax", "brax", "mujoco", "mujoco-mjx")},
         "machine": machine(),
+        "processes": jax.process_count(),
     }
     (run_dir / "config.json").write_text(json.dumps(data, indent=2))
 
@@ -117,8 +120,17 @@ def train(
 
     `trace_cache` (a folder) keeps the training env's traced reset and step between runs
     (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.
+
+    With several processes (`jax.distributed.initialize` first, in each), every process calls this
+    with the same arguments; they split the envs and average their gradients, and process 0 alone
+    evaluates and writes the run directory (the others return a summary without evaluations). The
+    trace cache is then not used (the processes would write the same files), and training does not
+    stop at `target_error` (Brax cannot stop the other processes with process 0).
     """
     run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
+    lead = jax.process_index() == 0
+    if jax.process_count() > 1:
+        trace_cache, stop_at_target = None, False
     if resume:
         check_resumable(config, run_dir)
     agent, algorithm = config.agent, config.module
@@ -134,8 +146,9 @@ def train(
         records = [json.loads(line) for line in lines if line.strip()]
         kept = [r for r in records if r["step"] <= steps_done]
         elapsed_before = kept[-1]["elapsed"] if kept else 0.0
-        (run_dir / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in kept))
-    else:
+        if lead:
+            (run_dir / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in kept))
+    elif lead:
         run_dir.mkdir(parents=True, exist_ok=True)
         save_config(run_dir, config, env)
     remaining = agent.num_timesteps - steps_done
@@ -150,8 +163,9 @@ def train(
 
     from tensorboardX import SummaryWriter  # a dependency of brax
 
-    # a resumed run drops the events after its checkpoint, as metrics.jsonl does
-    board = SummaryWriter(str(run_dir / TENSORBOARD), purge_step=steps_done if resume else None)
+    # a resumed run drops the events after its checkpoint, as metrics.jsonl does (Brax reports
+    # evaluations to process 0 only)
+    board = SummaryWriter(str(run_dir / TENSORBOARD), purge_step=steps_done if resume else None) if lead else None
 
     def progress(step: int, metrics: dict[str, Any]) -> None:
         if step == 0 and steps_done > 0:
@@ -189,7 +203,8 @@ def train(
     except _TargetReached:
         status = "target reached"
     finally:
-        board.close()
+        if board is not None:
+            board.close()
     summary = {
         "status": status,
         "env": config.env,
@@ -202,7 +217,8 @@ def train(
         "target_error": target_error,
         "time_to_target": reached or None,
     }
-    (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
+    if lead:
+        (run_dir / "summary.json").write_text(json.dumps(summary, indent=2))
     if status == "interrupted":
         raise KeyboardInterrupt
     return summary

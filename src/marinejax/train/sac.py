@@ -122,7 +122,8 @@ def save(path: Path, step: int, params, env, config: Config) -> None:
     """A Brax SAC checkpoint `path/<step:012d>` (normalizer and policy params + network config)."""
     from brax.training.agents.sac import checkpoint
 
-    save_checkpoint(checkpoint, network_factory(config, env.observation_size), path, step, params, env, config.normalize_observations)
+    save_checkpoint(checkpoint, network_factory(config, env.observation_size), path, step, params, env, config.normalize_observations,
+                    NETWORK_CONFIG)
 
 
 def load(path: Path):
