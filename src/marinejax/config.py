@@ -116,6 +116,15 @@ def check_range(name: str, value: Any, low: float | None = None, positive: bool 
         raise UserError(f"config '{name}' must be > 0, got {value!r}")
 
 
+def check_nonnegative(config: Any, names: tuple[str, ...], label: str = "config") -> None:
+    """Raise UserError unless each named field of `config` is finite and >= 0 (every entry, for a
+    tuple); `label` names the config in the message."""
+    for name in names:
+        value = getattr(config, name)
+        if not all(math.isfinite(v) and v >= 0 for v in (value if isinstance(value, tuple) else (value,))):
+            raise UserError(f"{label} '{name}' must be finite and >= 0, got {value}")
+
+
 def parse_key_values(items: list[str] | None, flag: str) -> dict[str, Any]:
     """Parse KEY=VALUE strings; VALUE is true/false, a Python literal (number, bool, tuple, string) or a bare string."""
     out = {}

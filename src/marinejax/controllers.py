@@ -49,13 +49,12 @@ towards a point ahead on the free beam nearest the goal (`_avoid_law`), its safe
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from marinejax.config import check_fields
+from marinejax.config import check_fields, check_nonnegative
 from marinejax.control import Controller
 from marinejax.envs.base import MarineEnv
 from marinejax.errors import UserError
@@ -292,9 +291,7 @@ class TorpedoAutopilotConfig:
 
     def __post_init__(self):
         check_fields("TorpedoAutopilotConfig", self, strict=True)
-        for name in ("pitch_gains", "speed_gains"):
-            if not all(math.isfinite(v) and v >= 0 for v in getattr(self, name)):
-                raise UserError(f"TorpedoAutopilotConfig '{name}' must be finite and >= 0, got {getattr(self, name)}")
+        check_nonnegative(self, ("pitch_gains", "speed_gains"), "TorpedoAutopilotConfig")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -122,3 +122,7 @@ def test_path_following_is_for_torpedoes_and_bad_settings_are_refused():
         paths.check_kind("square")
     with pytest.raises(UserError, match="integral_time_constant"):
         mj.make("Remus100-CircleFollowing", integral_time_constant=-1.0)
+    with pytest.raises(UserError, match="config 'settle_time' must be finite and >= 0, got -1.0"):
+        mj.make("Remus100-CircleFollowing", settle_time=-1.0)
+    with pytest.raises(UserError, match="config 'start_offset' must be finite and >= 0, got -0.5"):
+        mj.make("Remus100-CircleFollowing", start_offset=-0.5)

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.config import check_range
+from marinejax.config import check_nonnegative, check_range
 from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.errors import UserError
@@ -56,10 +56,8 @@ class DockingConfig(EnvConfig):
     def __post_init__(self):
         super().__post_init__()
         check_range("start_distance", self.start_distance, low=0.0)
-        for name in ("start_bearing", "start_depth", "dock_inside", "dock_tolerance", "dock_heading", "dock_speed",
-                     "dock_hold", "impact_threshold"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
+        check_nonnegative(self, ("start_bearing", "start_depth", "dock_inside", "dock_tolerance", "dock_heading", "dock_speed",
+                                 "dock_hold", "impact_threshold"))
         if self.start_bearing > math.pi / 2:
             raise UserError(f"config 'start_bearing' must be at most pi/2 (in front of the opening), got {self.start_bearing}")
 

@@ -31,7 +31,6 @@ and without surfacing.
 from __future__ import annotations
 
 import dataclasses
-import math
 import types
 
 import jax
@@ -39,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from marinejax.config import check_range
+from marinejax.config import check_nonnegative, check_range
 from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_mat
@@ -76,9 +75,7 @@ class ObstacleAvoidanceConfig(EnvConfig):
     def __post_init__(self):
         super().__post_init__()
         check_range("goal_distance", self.goal_distance, positive=True)
-        for name in ("goal_depth", "field_width", "clearance", "goal_radius", "surface_depth", "proximity_range"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
+        check_nonnegative(self, ("goal_depth", "field_width", "clearance", "goal_radius", "surface_depth", "proximity_range"))
         if not 0 <= self.obstacles <= len(self.movable_geoms):
             raise UserError(f"config 'obstacles' must be in [0, {len(self.movable_geoms)}] (the movable geoms), got {self.obstacles}")
         if self.goal_distance[0] <= 2 * self.clearance:

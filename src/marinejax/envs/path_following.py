@@ -31,13 +31,13 @@ vehicle's heading and the path's, in plan view. The evaluation window starts aft
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 import marinejax.envs.paths as paths
+from marinejax.config import check_nonnegative
 from marinejax.envs.base import RewardConfig, heading_error
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv
 from marinejax.errors import UserError
@@ -65,9 +65,7 @@ class PathFollowingConfig(CruisingConfig):
 
     def __post_init__(self):
         super().__post_init__()
-        for name in ("settle_time", "start_offset", "start_heading_error", "preview_spacing"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise UserError(f"config '{name}' must be finite and >= 0, got {getattr(self, name)}")
+        check_nonnegative(self, ("settle_time", "start_offset", "start_heading_error", "preview_spacing"))
         if self.num_preview_points < 1:
             raise UserError(f"config 'num_preview_points' must be >= 1, got {self.num_preview_points}")
 
