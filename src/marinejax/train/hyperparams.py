@@ -75,11 +75,13 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 # observed; without it, 0.50 m at 6.3 M steps). docs/results.md: seeds 0-4.
 _PATH = dataclasses.replace(_STATION, num_timesteps=8_000_000, num_evals=16)
 _TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing")})
-# The helix: with the 2 s leak of the observed error integral the slow seeds flew a steady 0.3-1 m
-# outside and below the path for millions of steps (the integral saturates); a 10 s leak lets the
-# policy integrate that offset away, and 512 envs a batch. Seeds 0-4: 4 of 5 within 0.10 m, the
-# fifth still improving at 0.19 m, every seed's speed within 11 mm/s (docs/results.md).
-_TUNED["HelixFollowing"] = (dataclasses.replace(_PATH, num_envs=512, batch_size=512), {"integral_time_constant": 10.0})
+# Helix and lemniscate: with the 2 s leak of the observed error integral a slow helix seed flew a
+# steady 0.3-1 m outside and below the path for millions of steps (the integral saturates); a 10 s
+# leak lets the policy integrate that offset away, and 512 envs a batch. Seeds 0-4: 4 of 5 within
+# 0.10 m on each path (the path recipe: 3 of 5), every seed holding the commanded speed (within
+# 45 mm/s; the path recipe left one lemniscate seed 0.96 m/s off) (docs/results.md).
+_CURVED = (dataclasses.replace(_PATH, num_envs=512, batch_size=512), {"integral_time_constant": 10.0})
+_TUNED.update({"HelixFollowing": _CURVED, "LemniscateFollowing": _CURVED})
 # The torpedo autopilot (120 s episodes of two set-points): a 10 s horizon (γ 0.99 at 10 Hz) and
 # 20 M steps; the seeds reach 0.1 m of depth error after 9.5-17 M steps (one never did: docs/results.md,
 # seeds 0-4).
