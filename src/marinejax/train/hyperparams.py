@@ -74,10 +74,10 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 # circle, seed 0 was at 0.04 m after 3.2 M steps and at best 0.034 m (with the cross-track integral
 # observed; without it, 0.50 m at 6.3 M steps). docs/results.md: seeds 0-4.
 _PATH = dataclasses.replace(_STATION, num_timesteps=8_000_000, num_evals=16)
-_TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing")})
+_TUNED.update({task: (_PATH, {}) for task in ("WaypointFollowing", "CircleFollowing")})
 # Helix and lemniscate: with the 2 s leak of the observed error integral a slow helix seed flew a
 # steady 0.3-1 m outside and below the path for millions of steps (the integral saturates); a 10 s
-# leak lets the policy integrate that offset away, and 512 envs a batch. Seeds 0-4: 4 of 5 within
+# leak lets the policy integrate that offset away; with 512 envs and a 512 batch. Seeds 0-4: 4 of 5 within
 # 0.10 m on each path (the path recipe: 3 of 5), every seed holding the commanded speed (within
 # 45 mm/s; the path recipe left one lemniscate seed 0.96 m/s off) (docs/results.md).
 _CURVED = (dataclasses.replace(_PATH, num_envs=512, batch_size=512), {"integral_time_constant": 10.0})
