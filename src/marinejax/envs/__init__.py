@@ -1,5 +1,5 @@
 """Registered RL tasks: station keeping, docking, obstacle avoidance and circle, helix and lemniscate tracking for ROVs; the
-autopilot and waypoint, circle, helix and lemniscate path following for torpedo AUVs.
+autopilot, waypoint, circle, helix and lemniscate path following and docking for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
@@ -24,12 +24,14 @@ from marinejax.envs.docking import Docking, DockingConfig
 from marinejax.envs.obstacle_avoidance import ObstacleAvoidance, ObstacleAvoidanceConfig
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
+from marinejax.envs.torpedo_docking import TorpedoDocking, TorpedoDockingConfig
 from marinejax.envs.tracking import TrackingConfig, Tracking
 from marinejax.envs.trajectories import TrajectoryConfig
 from marinejax.envs.wrappers import wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
 register_task("Docking", Docking)  # ROVs, in the rov_dock scene
+register_task("Docking", TorpedoDocking)  # torpedo AUVs, in the torpedo_dock scene
 register_task("ObstacleAvoidance", ObstacleAvoidance)  # ROVs, in the pillars scene, with the sonar
 register_task("Autopilot", Autopilot)  # torpedo AUVs
 register_task("WaypointFollowing", PathFollowing, kind="lines")
@@ -62,6 +64,8 @@ __all__ = [
     "RandomizationConfig",
     "ResetConfig",
     "RewardConfig",
+    "TorpedoDocking",
+    "TorpedoDockingConfig",
     "env_spec",
     "get_default_config",
     "list_envs",

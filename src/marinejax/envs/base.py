@@ -98,7 +98,8 @@ class RewardConfig:
     the heading term is flat; impact (tasks in a scene with contacts): −(|contact force| − threshold)/threshold
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
     gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle;
-    proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond.
+    proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond;
+    docked (torpedo docking): 1 on every step once the vehicle is latched in the dock.
     """
 
     position: float = 2.0
@@ -119,6 +120,7 @@ class RewardConfig:
     progress: float = 0.0
     collision: float = 0.0
     proximity: float = 0.0
+    docked: float = 0.0
 
 
 OBSERVATION_MODES = ("state", "sensors")
@@ -142,6 +144,7 @@ OBSERVATION_FIELDS = {
     "angular_velocity": ("rad/s", "body", "angular velocity"),
     "actuators": ("1", "-", "actuator states, each scaled to [-1, 1] by its command range"),
     "last_action": ("1", "-", "the previous action, in [-1, 1]"),
+    "dock": ("m", "body", "the dock's latch point (its tube's entrance on the axis) minus the vehicle's nose"),
     "integral_position": ("m s", "body", "leaky integral of the position error"),
     "integral_heading": ("rad s", "-", "leaky integral of the heading error"),
     **SCENE_SENSOR_FIELDS,

@@ -108,17 +108,17 @@ class Docking(StationKeeping):
         return {
             **super().errors(vs, info),
             "lateral_error": jnp.linalg.norm((vs.position - task.position)[1:]),
-            "impact_force": _contact_force(info),
+            "impact_force": contact_force(info),
             # float32 time steps: half a step of margin
             "docked": (task.hold >= self.config.dock_hold - 0.5 * self.config.control_dt).astype(jnp.float32),
         }
 
     def reward_terms(self, vs: VehicleState, info, action):
-        force = _contact_force(info)
+        force = contact_force(info)
         threshold = self.config.impact_threshold
         return {**super().reward_terms(vs, info, action), "impact": -jnp.maximum(force - threshold, 0.0) / threshold}
 
 
-def _contact_force(info) -> jnp.ndarray:
+def contact_force(info) -> jnp.ndarray:
     """The magnitude (N) of the force the scene exerts on the vehicle (`info["contact"]`)."""
     return jnp.linalg.norm(info["contact"][:3])

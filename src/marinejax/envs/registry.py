@@ -3,7 +3,8 @@
 Vehicles are discovered: every MJCF file in `models/mjcf/` is a vehicle, whose envs are named by its
 custom text `marinejax:env_name` (else its file stem in CamelCase). Tasks are registered once, in
 `marinejax/envs/__init__.py`, with `register_task`; every vehicle gets every task made for its kind
-(`marinejax:vehicle_kind`: "rov", the default, or "torpedo"; a task's `vehicle_kinds`). Every task also
+(`marinejax:vehicle_kind`: "rov", the default, or "torpedo"; a task's `vehicle_kinds`); one task name
+may have one class per kind (`Docking`: the ROV's landing station, the torpedo's funnel). Every task also
 gets a `<Task>Disturbed` variant: the same task whose default config draws, per episode, new
 physics (`randomization`), an Ornstein-Uhlenbeck current of up to 0.3 m/s (`current`) and a
 constant external force and torque (`disturbance`). `register_environment` adds any other
@@ -47,19 +48,23 @@ class EnvSpec:
     config: EnvConfig
 
 
-_TASKS: dict[str, TaskSpec] = {}
+_TASKS: dict[str, dict[str, TaskSpec]] = {}  # task name -> vehicle kind -> spec
 _CUSTOM_ENVS: dict[str, EnvSpec] = {}
 
 
 def register_task(name: str, env_class: type[MarineEnv], config: EnvConfig | None = None, **kwargs: Any) -> None:
-    """Register task `name` (and `<name>Disturbed`) for every vehicle: env_class(vehicle, config,
-    **kwargs) builds it; `config` defaults to env_class.default_config()."""
+    """Register task `name` (and `<name>Disturbed`) for every vehicle of env_class.vehicle_kinds:
+    env_class(vehicle, config, **kwargs) builds it; `config` defaults to env_class.default_config().
+    A name already registered for other kinds gets this class for these kinds."""
     config = config if config is not None else env_class.default_config()
     factory = functools.partial(_build, env_class, kwargs)
+    kinds = tuple(env_class.vehicle_kinds)
     for task, default in ((name, config), (f"{name}Disturbed", apply_overrides(config, DISTURBED))):
-        if task in _TASKS:
-            raise UserError(f"task {task!r} is already registered")
-        _TASKS[task] = TaskSpec(task, factory, default, tuple(env_class.vehicle_kinds))
+        taken = set(kinds) & set(_TASKS.get(task, {}))
+        if taken:
+            raise UserError(f"task {task!r} is already registered for vehicles of kind {sorted(taken)}")
+    for task, default in ((name, config), (f"{name}Disturbed", apply_overrides(config, DISTURBED))):
+        _TASKS.setdefault(task, {}).update({kind: TaskSpec(task, factory, default, kinds) for kind in kinds})
 
 
 def _build(env_class: type[MarineEnv], kwargs: dict[str, Any], vehicle: str, config: EnvConfig) -> MarineEnv:
@@ -78,7 +83,7 @@ def register_environment(name: str, task: str, vehicle: str, config: EnvConfig |
     if vehicle not in list_vehicles():
         raise UserError(f"unknown vehicle {vehicle!r}; available vehicles: {list_vehicles()}")
     _check_kind(task, vehicle)
-    default = _TASKS[task].config
+    default = _TASKS[task][vehicle_kind(vehicle)].config
     if config is not None and type(config) is not type(default):
         raise UserError(f"task {task!r} takes a {type(default).__name__}, got {type(config).__name__}")
     _CUSTOM_ENVS[name] = EnvSpec(name, task, vehicle, config if config is not None else _with_vehicle_sensors(default, vehicle))
@@ -90,21 +95,21 @@ def _vehicle_prefixes() -> dict[str, str]:
 
 
 def _check_kind(task: str, vehicle: str) -> None:
-    kinds = _TASKS[task].vehicle_kinds
+    kinds = list(_TASKS[task])
     if vehicle_kind(vehicle) not in kinds:
         raise UserError(f"task {task!r} is for vehicles of kind {list(kinds)}; {vehicle!r} is a {vehicle_kind(vehicle)!r}")
 
 
 def list_tasks() -> dict[str, tuple[str, ...]]:
     """Registered task names (with their Disturbed variants) → the vehicle kinds they are for."""
-    return {name: spec.vehicle_kinds for name, spec in _TASKS.items()}
+    return {name: tuple(by_kind) for name, by_kind in _TASKS.items()}
 
 
 def list_envs() -> list[str]:
     """All registered env names: every vehicle × every task for its kind, then the user-registered ones."""
     kinds = {v: vehicle_kind(v) for v in list_vehicles()}
-    return [f"{prefix}-{task}" for prefix, vehicle in _vehicle_prefixes().items() for task, spec in _TASKS.items()
-            if kinds[vehicle] in spec.vehicle_kinds] + list(_CUSTOM_ENVS)
+    return [f"{prefix}-{task}" for prefix, vehicle in _vehicle_prefixes().items() for task, by_kind in _TASKS.items()
+            if kinds[vehicle] in by_kind] + list(_CUSTOM_ENVS)
 
 
 def env_spec(name: str) -> EnvSpec:
@@ -113,9 +118,9 @@ def env_spec(name: str) -> EnvSpec:
         return _CUSTOM_ENVS[name]
     prefix, _, task = name.partition("-")
     vehicle = _vehicle_prefixes().get(prefix)
-    if vehicle is None or task not in _TASKS or vehicle_kind(vehicle) not in _TASKS[task].vehicle_kinds:
+    if vehicle is None or vehicle_kind(vehicle) not in _TASKS.get(task, {}):
         raise UserError(f"unknown env {name!r}; registered envs: {list_envs()}")
-    return EnvSpec(name, task, vehicle, _with_vehicle_sensors(_TASKS[task].config, vehicle))
+    return EnvSpec(name, task, vehicle, _with_vehicle_sensors(_TASKS[task][vehicle_kind(vehicle)].config, vehicle))
 
 
 def _with_vehicle_sensors(config: EnvConfig, vehicle: str) -> EnvConfig:
@@ -140,7 +145,7 @@ def make(name: str, config: EnvConfig | None = None, **overrides: Any) -> Marine
     config = config or spec.config
     if not isinstance(config, type(spec.config)):
         raise UserError(f"env {name!r} takes a {type(spec.config).__name__}, got {type(config).__name__}")
-    return _TASKS[spec.task].factory(spec.vehicle, apply_overrides(config, overrides))
+    return _TASKS[spec.task][vehicle_kind(spec.vehicle)].factory(spec.vehicle, apply_overrides(config, overrides))
 
 
 def register_with_brax() -> None:

@@ -102,6 +102,9 @@ _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
         {"reward.smoothness": 0.1, "reward.angular_velocity": 0.1},
     ),
 }
+# Torpedo docking (the same task name as the ROVs' docking, another class): a straight path ending in
+# the funnel, so the path recipe.
+_TUNED_ENVS.update({f"{v}-Docking{d}": (_PATH, {}) for v in ("Remus100", "Remus100FourFin") for d in ("", "Disturbed")})
 
 
 def tuned_config(env_name: str, algorithm: str = "ppo") -> TrainConfig:

@@ -1,0 +1,86 @@
+"""Torpedo docking: the latch, the errors and reward once latched, and the line-of-sight autopilot
+flying the REMUS 100 into the funnel dock."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import marinejax
+from marinejax.controllers import TorpedoAutopilotConfig, torpedo_autopilot
+from marinejax.envs import Docking, TorpedoDocking
+from marinejax.envs.registry import register_task
+from marinejax.errors import UserError
+from marinejax.frames import quat_from_euler, quat_to_mat
+from marinejax.physics import VehicleState
+from marinejax.statistics import rollout_controller, summarize
+
+
+@pytest.fixture(scope="module")
+def env():
+    return marinejax.make("Remus100-Docking")
+
+
+def test_docking_is_one_task_name_with_a_class_per_vehicle_kind():
+    assert isinstance(marinejax.make("Remus100-Docking"), TorpedoDocking)
+    assert type(marinejax.make("BlueROV2-Docking")) is Docking
+    assert marinejax.make("Remus100FourFin-DockingDisturbed").config.current.mode == "ou"
+    with pytest.raises(UserError, match="'Docking' is already registered for vehicles of kind \\['torpedo'\\]"):
+        register_task("Docking", TorpedoDocking)
+    with pytest.raises(UserError, match="'start_distance'"):
+        marinejax.make("Remus100-Docking", start_distance=(-5.0, 10.0))
+    with pytest.raises(UserError, match="'nose' must be a sequence of 3 values"):
+        marinejax.make("Remus100-Docking", nose=(0.8, 0.0))
+
+
+def _at(env, nose_position, yaw=0.0):
+    """A vehicle state whose nose is at `nose_position` (m, world), level, at heading `yaw`."""
+    q = quat_from_euler(0.0, 0.0, yaw)
+    cg = jnp.asarray(nose_position, jnp.float32) - quat_to_mat(q) @ jnp.asarray(env.config.nose, jnp.float32)
+    return VehicleState(position=cg, quaternion=q, velocity=jnp.array([1.0, 0.0, 0.0]), angular_velocity=jnp.zeros(3),
+                        actuators=jnp.zeros(env.vehicle.num_actuators))
+
+
+def test_the_latch_closes_on_a_nose_inside_the_tube_and_stays_closed(env):
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    task = state.info["task"]
+    advance = jax.jit(env.advance_task)
+    play = env.config.capture_radius
+    for nose, docked in [((0.9, 0.0, 0.0), 0.0),  # before the tube's entrance
+                         ((1.05, 0.0, play - 0.01), 1.0), ((1.05, play - 0.01, 0.0), 1.0),
+                         ((1.05, 0.0, play + 0.02), 0.0),  # past the entrance but against the tube's wall
+                         ((5.0, 3.0, 0.0), 0.0)]:  # beside the dock
+        assert float(advance(task, _at(env, nose)).docked) == docked, nose
+    latched = advance(task, _at(env, (1.05, 0.0, 0.0)))
+    assert float(advance(latched, _at(env, (5.0, 3.0, 0.0))).docked) == 1.0  # held, wherever the vehicle goes on
+
+
+def test_errors_measure_the_miss_and_vanish_once_latched(env):
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    info = {**state.info, "contact": jnp.zeros(6)}
+    errors = jax.jit(env.errors)
+    free = errors(_at(env, (-3.0, 0.4, -0.3), yaw=0.5), info)
+    assert float(free["position_error"]) == pytest.approx(np.hypot(4.0, 0.5), rel=1e-5)  # nose to (1, 0, 0)
+    assert float(free["docked"]) == 0.0 and float(free["heading_error_deg"]) == pytest.approx(np.degrees(0.5), rel=1e-4)
+    latched = {**info, "task": info["task"].replace(docked=jnp.ones(()))}
+    after = errors(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched)
+    assert {k: float(v) for k, v in after.items()} == {"heading_error_deg": 0.0, "position_error": 0.0, "speed_error": 0.0,
+                                                       "cross_track_error": 0.0, "impact_force": 0.0, "docked": 1.0}
+    terms = jax.jit(env.reward_terms)(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched, jnp.ones(env.action_size))
+    assert {k: float(v) for k, v in terms.items() if v != 0} == {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0,
+                                                                 "docked": 1.0}
+
+
+def test_line_of_sight_flies_the_remus_into_the_dock(env):
+    """The line-of-sight autopilot (Δ = 5 m, no tuning) on 4 episodes, 20-40 m out, up to 2 m off the
+    axis: every one latched, the funnel's bars touched on the way in on some."""
+    controller = torpedo_autopilot(env, TorpedoAutopilotConfig(heading_gain=5.0, heading_derivative_time=1.0, lookahead=5.0))
+    result = rollout_controller(env, controller, 4, seed=3)
+    stats = summarize(env, result)
+    assert stats["success_rate"] == 1.0 and stats["position_error_mean_m"] == 0.0, stats
+    first = result["docked"].argmax(axis=1)
+    assert (result["docked"].max(axis=1) == 1).all() and (first < env.config.episode_length - 10).all()
+    # until latched, the nose's distance from the latch point falls as the vehicle closes in
+    for e, k in enumerate(first):
+        assert result["error"][e, 0] > 19.0 and result["error"][e, k - 1] < 1.0
+    assert np.isfinite(result["impact_force"]).all() and result["impact_force"].max() > 0
