@@ -53,6 +53,12 @@ def test_the_latch_closes_on_a_nose_inside_the_tube_and_stays_closed(env):
         assert float(advance(task, _at(env, nose)).docked) == docked, nose
     latched = advance(task, _at(env, (1.05, 0.0, 0.0)))
     assert float(advance(latched, _at(env, (5.0, 3.0, 0.0))).docked) == 1.0  # held, wherever the vehicle goes on
+    assert float(latched.miss) == -1.0
+    # passing the entrance's plane outside the tube is a miss, kept with its distance from the axis
+    missed = advance(task, _at(env, (1.05, 3.0, 4.0)))
+    assert float(missed.miss) == pytest.approx(5.0, rel=1e-5) and float(missed.docked) == 0.0
+    later = advance(missed, _at(env, (1.5, 0.0, 0.0)))  # and nothing latches it afterwards
+    assert float(later.docked) == 0.0 and float(later.miss) == pytest.approx(5.0, rel=1e-5)
 
 
 def test_errors_measure_the_miss_and_vanish_once_latched(env):
@@ -62,6 +68,8 @@ def test_errors_measure_the_miss_and_vanish_once_latched(env):
     free = errors(_at(env, (-3.0, 0.4, -0.3), yaw=0.5), info)
     assert float(free["position_error"]) == pytest.approx(np.hypot(4.0, 0.5), rel=1e-5)  # nose to (1, 0, 0)
     assert float(free["docked"]) == 0.0 and float(free["heading_error_deg"]) == pytest.approx(np.degrees(0.5), rel=1e-4)
+    missed = {**info, "task": info["task"].replace(miss=jnp.asarray(0.7))}
+    assert float(errors(_at(env, (30.0, 5.0, 0.0)), missed)["position_error"]) == pytest.approx(0.7)  # the miss, however far it flies on
     latched = {**info, "task": info["task"].replace(docked=jnp.ones(()))}
     after = errors(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched)
     assert {k: float(v) for k, v in after.items()} == {"heading_error_deg": 0.0, "position_error": 0.0, "speed_error": 0.0,

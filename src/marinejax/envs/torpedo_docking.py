@@ -18,8 +18,11 @@ the vehicle; a contact force above `impact_threshold` N is an impact, penalized 
 `impact` (−(|F| − threshold)/threshold) and logged as `impact_force` (N).
 
 Errors: `position_error` is the nose's distance from the latch point (the tube's entrance on the
-axis), 0 once latched: over the evaluation window, the last second, it is 0 for a docked episode and
-the miss distance for another, so the success rate (below `success_threshold_m`) is the docking rate;
+axis) on the way in, 0 once latched, and for a vehicle whose nose passed the entrance's plane
+without being latched (outside the tube: a miss it cannot turn back from) its distance from the axis
+there, from then on. Over the evaluation window, the last second, it is 0 for a docked episode, the
+miss distance for a missed one and the distance still to go for one that did not arrive, so the
+success rate (below `success_threshold_m`) is the docking rate;
 `cross_track_error` is the CG's distance from the approach line; `heading_error_deg` and
 `speed_error` are path following's. The episode ends beyond `max_distance` m of the latch point.
 
@@ -76,6 +79,7 @@ class DockApproachTask:
     along_speed: jnp.ndarray  # () m/s, ds/dt over the last step
     yaw: jnp.ndarray  # () rad, the line's heading (0)
     docked: jnp.ndarray  # () 1.0 once latched
+    miss: jnp.ndarray  # () m: the nose's distance from the axis where it passed the entrance unlatched; −1 before
 
 
 class TorpedoDocking(PathFollowing):
@@ -103,7 +107,7 @@ class TorpedoDocking(PathFollowing):
                           center=jnp.zeros((1, 3)), angle=jnp.zeros(1), side=jnp.ones(1), radius=jnp.asarray(c.path.fillet_radius, jnp.float32))
         speed = jax.random.uniform(k2, minval=c.path.speed[0], maxval=c.path.speed[1])
         return DockApproachTask(path=line, speed=speed, s=jnp.zeros(()), along_speed=speed, yaw=jnp.zeros(()),
-                                docked=jnp.zeros(()))
+                                docked=jnp.zeros(()), miss=-jnp.ones(()))
 
     def nose(self, vs: VehicleState) -> jnp.ndarray:
         """The nose's position (m, world)."""
@@ -112,8 +116,11 @@ class TorpedoDocking(PathFollowing):
     def advance_task(self, task: DockApproachTask, vs: VehicleState) -> DockApproachTask:
         task = super().advance_task(task, vs)
         nose = self.nose(vs)
-        latched = (nose[0] >= self.config.tube_entrance) & (jnp.linalg.norm(nose[1:]) <= self.config.capture_radius)
-        return task.replace(docked=jnp.maximum(task.docked, latched.astype(jnp.float32)))
+        radial = jnp.linalg.norm(nose[1:])
+        through = nose[0] >= self.config.tube_entrance
+        latched = through & (radial <= self.config.capture_radius) & (task.miss < 0)
+        missed = through & ~latched & (task.docked == 0) & (task.miss < 0)
+        return task.replace(docked=jnp.maximum(task.docked, latched.astype(jnp.float32)), miss=jnp.where(missed, radial, task.miss))
 
     def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
         task: DockApproachTask = info["task"]
@@ -121,7 +128,7 @@ class TorpedoDocking(PathFollowing):
         follow = super().errors(vs, info)
         return {
             "heading_error_deg": follow["heading_error_deg"] * free,
-            "position_error": jnp.linalg.norm(self._latch - self.nose(vs)) * free,
+            "position_error": jnp.where(task.miss >= 0, task.miss, jnp.linalg.norm(self._latch - self.nose(vs))) * free,
             "speed_error": follow["speed_error"] * free,
             "cross_track_error": follow["position_error"] * free,
             "impact_force": contact_force(info),
