@@ -33,47 +33,54 @@ def test_docking_is_one_task_name_with_a_class_per_vehicle_kind():
         marinejax.make("Remus100-Docking", nose=(0.8, 0.0))
 
 
-def _at(env, nose_position, yaw=0.0):
-    """A vehicle state whose nose is at `nose_position` (m, world), level, at heading `yaw`."""
+def _at(env, nose_position, yaw=0.0, speed=1.0):
+    """A vehicle state whose nose is at `nose_position` (m, world), level, at heading `yaw`, moving
+    forward at `speed` (m/s)."""
     q = quat_from_euler(0.0, 0.0, yaw)
     cg = jnp.asarray(nose_position, jnp.float32) - quat_to_mat(q) @ jnp.asarray(env.config.nose, jnp.float32)
-    return VehicleState(position=cg, quaternion=q, velocity=jnp.array([1.0, 0.0, 0.0]), angular_velocity=jnp.zeros(3),
+    return VehicleState(position=cg, quaternion=q, velocity=jnp.array([speed, 0.0, 0.0]), angular_velocity=jnp.zeros(3),
                         actuators=jnp.zeros(env.vehicle.num_actuators))
 
 
 def test_the_latch_closes_on_a_nose_inside_the_tube_and_stays_closed(env):
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
-    task = state.info["task"]
+    task, info = state.info["task"], state.info
     advance = jax.jit(env.advance_task)
     play = env.config.capture_radius
     for nose, docked in [((0.9, 0.0, 0.0), 0.0),  # before the tube's entrance
                          ((1.05, 0.0, play - 0.01), 1.0), ((1.05, play - 0.01, 0.0), 1.0),
-                         ((1.05, 0.0, play + 0.02), 0.0),  # past the entrance but against the tube's wall
+                         ((1.05, 0.0, play + 0.02), 0.0),  # past the entrance, outside the ring of bars
                          ((5.0, 3.0, 0.0), 0.0)]:  # beside the dock
-        assert float(advance(task, _at(env, nose)).docked) == docked, nose
-    latched = advance(task, _at(env, (1.05, 0.0, 0.0)))
-    assert float(advance(latched, _at(env, (5.0, 3.0, 0.0))).docked) == 1.0  # held, wherever the vehicle goes on
+        assert float(advance(task, _at(env, nose), info).docked) == docked, nose
+    assert float(advance(task, _at(env, (1.05, 0.0, 0.0), speed=-0.1), info).docked) == 0.0  # moving backwards
+    latched = advance(task, _at(env, (1.05, 0.05, 0.0), yaw=0.1), {**info, "time": jnp.asarray(31.5)})
     assert float(latched.miss) == -1.0
+    np.testing.assert_allclose(latched.at_dock, [0.05, np.degrees(0.1), abs(float(task.speed) - float(latched.along_speed)), 31.5], rtol=1e-4)
+    later = advance(latched, _at(env, (5.0, 3.0, 0.0)), {**info, "time": jnp.asarray(40.0)})
+    assert float(later.docked) == 1.0 and np.array_equal(later.at_dock, latched.at_dock)  # held, wherever the vehicle goes on
     # passing the entrance's plane outside the tube is a miss, kept with its distance from the axis
-    missed = advance(task, _at(env, (1.05, 3.0, 4.0)))
+    missed = advance(task, _at(env, (1.05, 3.0, 4.0)), info)
     assert float(missed.miss) == pytest.approx(5.0, rel=1e-5) and float(missed.docked) == 0.0
-    later = advance(missed, _at(env, (1.5, 0.0, 0.0)))  # and nothing latches it afterwards
-    assert float(later.docked) == 0.0 and float(later.miss) == pytest.approx(5.0, rel=1e-5)
+    after = advance(missed, _at(env, (1.5, 0.0, 0.0)), info)  # and nothing latches it afterwards
+    assert float(after.docked) == 0.0 and float(after.miss) == pytest.approx(5.0, rel=1e-5)
 
 
-def test_errors_measure_the_miss_and_vanish_once_latched(env):
+def test_errors_measure_the_miss_and_keep_their_values_at_docking(env):
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
-    info = {**state.info, "contact": jnp.zeros(6)}
+    info = {**state.info, "contact": jnp.array([0.0, 300.0, 400.0, 0.0, 0.0, 0.0])}
     errors = jax.jit(env.errors)
     free = errors(_at(env, (-3.0, 0.4, -0.3), yaw=0.5), info)
     assert float(free["position_error"]) == pytest.approx(np.hypot(4.0, 0.5), rel=1e-5)  # nose to (1, 0, 0)
-    assert float(free["docked"]) == 0.0 and float(free["heading_error_deg"]) == pytest.approx(np.degrees(0.5), rel=1e-4)
+    assert float(free["docked"]) == 0.0 and float(free["impact_force"]) == pytest.approx(500.0)
+    assert not env.failed(free) and env.failed({**free, "impact_force": jnp.asarray(1000.5)})  # a crash
     missed = {**info, "task": info["task"].replace(miss=jnp.asarray(0.7))}
     assert float(errors(_at(env, (30.0, 5.0, 0.0)), missed)["position_error"]) == pytest.approx(0.7)  # the miss, however far it flies on
-    latched = {**info, "task": info["task"].replace(docked=jnp.ones(()))}
+    at_dock = jnp.array([0.03, 2.0, 0.1, 25.0])
+    latched = {**info, "task": info["task"].replace(docked=jnp.ones(()), at_dock=at_dock)}
     after = errors(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched)
-    assert {k: float(v) for k, v in after.items()} == {"heading_error_deg": 0.0, "position_error": 0.0, "speed_error": 0.0,
-                                                       "cross_track_error": 0.0, "impact_force": 0.0, "docked": 1.0}
+    assert {k: round(float(v), 5) for k, v in after.items()} == {
+        "position_error": 0.0, "lateral_error": 0.03, "heading_error_deg": 2.0, "speed_error": 0.1, "time_to_dock": 25.0,
+        "cross_track_error": 0.0, "impact_force": 0.0, "docked": 1.0}
     terms = jax.jit(env.reward_terms)(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched, jnp.ones(env.action_size))
     assert {k: float(v) for k, v in terms.items() if v != 0} == {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0,
                                                                  "docked": 1.0}
@@ -91,4 +98,6 @@ def test_line_of_sight_flies_the_remus_into_the_dock(env):
     # until latched, the nose's distance from the latch point falls as the vehicle closes in
     for e, k in enumerate(first):
         assert result["error"][e, 0] > 19.0 and result["error"][e, k - 1] < 1.0
-    assert np.isfinite(result["impact_force"]).all() and result["impact_force"].max() > 0
+        assert result["time_to_dock"][e, -1] == pytest.approx(result["time"][k], abs=1e-3)
+    assert (result["lateral_error"][:, -1] <= env.config.capture_radius).all()
+    assert np.isfinite(result["impact_force"]).all()

@@ -312,7 +312,7 @@ class MarineEnv(Env):
         if self.plant.sys.contacts:
             info["contact"] = self.plant.contact_wrench(ps)
         vs = self.plant.vehicle_state(ps)
-        info["task"] = self.advance_task(info["task"], vs)  # the task's own state (a path's closest point)
+        info["task"] = self.advance_task(info["task"], vs, info)  # the task's own state (a path's closest point)
         if self.plant.scene_sensors:  # altimeter, sonar: ray casts into the scene
             info["scene_sensors"] = self.plant.scene_sensors.step(info["scene_sensors"], self.plant.cast(info["params"], ps), k_scene)
         if self._sensor_mode:
@@ -548,10 +548,11 @@ class MarineEnv(Env):
         non-finite): a collision, for a task that forbids one. Default: never."""
         return jnp.zeros((), bool)
 
-    def advance_task(self, task: Any, vs: VehicleState) -> Any:
+    def advance_task(self, task: Any, vs: VehicleState, info: dict) -> Any:
         """The task after a step that ended in exact state `vs` (before the errors, observation and
-        reward are computed): for a task with a state of its own, such as the closest point on a
-        path. Most tasks' targets are fixed per episode: unchanged."""
+        reward are computed), with the step's `info` (time, and in a scene with contacts `contact`):
+        for a task with a state of its own, such as the closest point on a path or a latch. Most
+        tasks' targets are fixed per episode: unchanged."""
         return task
 
     def observe(self, vs: VehicleState, info: dict, action: jnp.ndarray) -> jnp.ndarray:

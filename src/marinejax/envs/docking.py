@@ -100,7 +100,7 @@ class Docking(StationKeeping):
                 & (jnp.degrees(jnp.abs(heading_error(vs.quaternion, task.yaw))) <= c.dock_heading)
                 & (jnp.linalg.norm(vs.velocity) <= c.dock_speed))
 
-    def advance_task(self, task: DockTask, vs: VehicleState) -> DockTask:
+    def advance_task(self, task: DockTask, vs: VehicleState, info) -> DockTask:
         return task.replace(hold=jnp.where(self._docked_now(vs, task), task.hold + self.config.control_dt, 0.0))
 
     def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:

@@ -139,7 +139,7 @@ class ObstacleAvoidance(MarineEnv):
         return VehicleState(position=task.start, quaternion=quat_from_euler(0.0, 0.0, yaw), velocity=jnp.zeros(3),
                             angular_velocity=jnp.zeros(3), actuators=jnp.zeros(self.vehicle.num_actuators))
 
-    def advance_task(self, task: GoalTask, vs: VehicleState) -> GoalTask:
+    def advance_task(self, task: GoalTask, vs: VehicleState, info) -> GoalTask:
         distance = jnp.linalg.norm(task.position - vs.position)
         return task.replace(distance=distance, progress=task.distance - distance)
 

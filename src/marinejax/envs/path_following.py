@@ -102,7 +102,7 @@ class PathFollowing(CruisingEnv):
         s = jnp.zeros(())
         return PathTask(path=path, speed=speed, s=s, along_speed=speed, yaw=_course(paths.point(self.kind, path, s)[1]))
 
-    def advance_task(self, task: PathTask, vs: VehicleState) -> PathTask:
+    def advance_task(self, task: PathTask, vs: VehicleState, info) -> PathTask:
         s = paths.project(self.kind, task.path, task.s, vs.position)
         _, tangent = paths.point(self.kind, task.path, s)
         return task.replace(s=s, along_speed=(s - task.s) / self.config.control_dt, yaw=_course(tangent))
