@@ -63,9 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, target: float, episodes: int,
-             log=print, trace_cache: Path | None = None, algorithm: str = "ppo") -> dict[str, Any]:
+             log=print, trace_cache: Path | None = None, algorithm: str = "ppo", stop_at_target: bool = False) -> dict[str, Any]:
     """Train (or resume, or reuse) one seed and evaluate it; returns its result row. `agent`: overrides
-    of the algorithm's settings; `trace_cache`: as `train`'s."""
+    of the algorithm's settings; `trace_cache`: as `train`'s; `stop_at_target`: end the training at
+    the first evaluation within `target` m (the benchmark trains the whole budget)."""
     from marinejax.train.evaluate import evaluate_finished_run
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
     from marinejax.train.curves import WINDOW_ERROR
@@ -92,7 +93,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
             log(f"{env_name} seed {seed}: {r['step']:>10,} env steps, {r['elapsed']:6.0f} s, "
                 f"evaluation error {err if err is None else f'{err:.4f} m'}")
 
-        summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=False,
+        summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=stop_at_target,
                         trace_cache=trace_cache)
         evaluate_finished_run(run_dir, summary, episodes=episodes, video=False)
     ev = summary["evaluation"]
