@@ -73,6 +73,7 @@ def test_errors_measure_the_miss_and_keep_their_values_at_docking(env):
     assert float(free["position_error"]) == pytest.approx(np.hypot(4.0, 0.5), rel=1e-5)  # nose to (1, 0, 0)
     assert float(free["docked"]) == 0.0 and float(free["impact_force"]) == pytest.approx(500.0)
     assert not env.failed(free) and env.failed({**free, "impact_force": jnp.asarray(1000.5)})  # a crash
+    assert env.failed({**free, "cross_track_error": jnp.asarray(10.5)})  # lost
     missed = {**info, "task": info["task"].replace(miss=jnp.asarray(0.7))}
     assert float(errors(_at(env, (30.0, 5.0, 0.0)), missed)["position_error"]) == pytest.approx(0.7)  # the miss, however far it flies on
     at_dock = jnp.array([0.03, 2.0, 0.1, 25.0])

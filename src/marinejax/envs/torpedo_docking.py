@@ -20,7 +20,8 @@ the episode (the physics goes on; a real dock would stop the vehicle, and nothin
 then counts). A nose that passes the entrance's plane outside the tube has missed (a torpedo cannot
 turn back within the episode). Contacts with the funnel are how it guides the vehicle: a contact
 force above `impact_threshold` N costs reward (the term `impact`, −(|F| − threshold)/threshold),
-and one above `impact_limit` N is a crash, which ends the episode as a failure.
+and one above `impact_limit` N is a crash, which ends the episode as a failure, as does straying
+more than `max_cross_track` m from the approach line.
 
 Errors (`position_error` is the evaluated one): `position_error` the nose's distance from the latch
 point (the tube's entrance on the axis) on the way in, 0 once latched, and after a miss the nose's
@@ -62,6 +63,7 @@ class TorpedoDockingConfig(PathFollowingConfig):
     scene: str = "torpedo_dock"
     episode_length: int = 600  # 60 s at 10 Hz: 41 m at 1 m/s, with 19 s to spare
     max_distance: float = 60.0  # m, the nose from the latch point: the episode terminates beyond
+    max_cross_track: float = 10.0  # m, the CG from the approach line: the episode fails beyond (as path following's)
     start_distance: tuple[float, float] = (20.0, 40.0)  # m before the dock's mouth, along its axis
     start_offset: float = 2.0  # m off the approach line sideways (vertically: half)
     start_heading_error: float = 0.2  # rad
@@ -74,12 +76,13 @@ class TorpedoDockingConfig(PathFollowingConfig):
     # most 270 N, and 320-800 N in the Disturbed variant (one 1.6 kN strike: a crash)
     impact_threshold: float = 200.0
     impact_limit: float = 1000.0
-    reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0, impact=1.0, docked=5.0)
+    # position scale 3 m: the starts are up to 2.2 m off the line, where a 1 m scale has little slope
+    reward: RewardConfig = RewardConfig(upright=0.0, speed=1.0, impact=1.0, docked=5.0, position_scale=3.0)
 
     def __post_init__(self):
         super().__post_init__()
         check_range("start_distance", self.start_distance, positive=True)
-        check_nonnegative(self, ("tube_entrance", "capture_radius", "impact_threshold", "impact_limit"))
+        check_nonnegative(self, ("tube_entrance", "capture_radius", "impact_threshold", "impact_limit", "max_cross_track"))
 
 
 @struct.dataclass
@@ -148,14 +151,15 @@ class TorpedoDocking(PathFollowing):
             "heading_error_deg": task.at_dock[1],
             "speed_error": task.at_dock[2],
             "time_to_dock": task.at_dock[3],
-            "cross_track_error": jnp.linalg.norm(self.target_position(info) - vs.position) * free,
+            "cross_track_error": jnp.linalg.norm(vs.position[1:]) * free,  # from the dock's axis, the approach line
             "impact_force": contact_force(info) * free,
             "docked": task.docked,
         }
 
     def failed(self, errors) -> jnp.ndarray:
-        """A crash: a contact force above `impact_limit` (before the latch)."""
-        return errors["impact_force"] > self.config.impact_limit
+        """A crash (a contact force above `impact_limit`) or lost (the CG more than `max_cross_track`
+        m from the approach line), before the latch."""
+        return (errors["impact_force"] > self.config.impact_limit) | (errors["cross_track_error"] > self.config.max_cross_track)
 
     def task_observation_fields(self) -> dict[str, slice]:
         fields = super().task_observation_fields()
