@@ -12,6 +12,7 @@ import marinejax.envs as E
 from marinejax.control import run_steps, sequence_controller
 from marinejax.plant.current import CurrentConfig, sample_current, step_current
 from marinejax.physics import VehicleState
+from marinejax.vehicle import vehicle_kind
 
 
 def episode_fn(env):
@@ -357,8 +358,14 @@ def test_window_error_sums_to_the_evaluation_statistic(name, max_distance):
 
 
 # one env per registered task (its first vehicle of the task's kind)
-_ONE_PER_TASK = sorted({min(n for n in E.list_envs() if n.split("-", 1)[1] == task)
-                        for task in {n.split("-", 1)[1] for n in E.list_envs()} if not task.endswith("Disturbed")})
+def _task_and_kind(name: str) -> tuple[str, str]:
+    spec = E.env_spec(name)
+    return spec.task, vehicle_kind(spec.vehicle)
+
+
+# one env per task and vehicle kind (a task name may have a class per kind: Docking)
+_ONE_PER_TASK = sorted({min(n for n in E.list_envs() if _task_and_kind(n) == key)
+                        for key in {_task_and_kind(n) for n in E.list_envs()} if not key[0].endswith("Disturbed")})
 
 
 @pytest.mark.parametrize("name", _ONE_PER_TASK)
