@@ -12,6 +12,7 @@ from mujoco import mjx
 
 from marinejax import physics
 from marinejax.errors import MissingFileError, UserError
+from marinejax.frames import quat_to_mat
 from marinejax.scene import list_scenes
 from marinejax.vehicle import load_vehicle
 
@@ -82,7 +83,25 @@ def test_the_scene_brings_its_world_and_the_vehicle_keeps_its_names():
     hull = wall.mj_model.geom("hull")
     collision = wall.mj_model.geom("collision_hull")
     assert hull.contype == 0 and hull.conaffinity == 0
-    assert collision.contype == 1 and collision.group == 3
+    assert collision.contype == 3 and collision.group == 3
+
+
+def test_the_torpedo_docks_bars_touch_the_hull_and_not_the_fins():
+    """Contact bits (marinejax.scene): the dock's bars touch hulls only; the seabed and walls every
+    collision geom, fins included."""
+    def touch(model, a, b):
+        ga, gb = model.geom(a), model.geom(b)
+        return bool((ga.contype & gb.conaffinity) | (gb.contype & ga.conaffinity))
+
+    for name in ("remus100", "remus100_four_fin"):
+        dock = load_vehicle(name, scene="torpedo_dock").mj_model
+        assert touch(dock, "collision_hull", "scene:cone_0") and touch(dock, "collision_hull", "scene:tube_7")
+        for fin in ("collision_fins_vertical", "collision_fins_horizontal"):
+            assert not touch(dock, fin, "scene:cone_0") and not touch(dock, fin, "scene:tube_7")
+        wall = load_vehicle(name, scene="wall").mj_model
+        assert touch(wall, "collision_fins_vertical", "scene:wall") and touch(wall, "collision_hull", "scene:seabed")
+    rov = load_vehicle("bluerov2_heavy", scene="torpedo_dock").mj_model
+    assert touch(rov, "collision_port", "scene:cone_0")
 
 
 def test_inverse_weights_are_the_rigid_bodys_without_added_mass(tmp_path):
@@ -218,13 +237,17 @@ def test_the_rov_dock_guides_a_vehicle_pushed_at_it_off_centre_onto_its_landing_
 
 def test_the_torpedo_dock_funnels_a_cruising_remus_into_its_tube():
     """The REMUS 100 cruising at 1 m/s with its fins centred, 0.25 m off the dock's axis sideways and
-    0.1 m up: the cone turns it into the tube, and it goes on forward inside it."""
+    0.1 m up: the cone turns it into the tube, and it goes on forward through it."""
     vehicle = load_vehicle("remus100", scene="torpedo_dock")
     shaft = 1.0 / 2.554 * 1525.0  # rpm for about 1 m/s
     commands = jnp.tile(jnp.array([0.0, 0.0, shaft / 1525.0 * 2.0 - 1.0]), (80, 1))
     start = physics.initial_state(vehicle, position=(-3.0, 0.25, 0.1), velocity=(1.0, 0.0, 0.0), actuators=(0.0, 0.0, shaft))
     trajectory = physics.rollout(vehicle, commands, start, control_dt=0.1, substeps=2)
-    axis = np.asarray(trajectory.position[-1]) + [0.8, 0.0, 0.02]  # the nose, on the hull's axis 0.02 m above the CG
-    assert axis[0] > 1.5  # past the tube's entrance (x = 1 m)
-    assert np.hypot(axis[1], axis[2]) < 0.2 - 0.095 + 0.01  # inside: the tube's play (inner radius minus the hull's)
+    # the nose (body (0.8, 0, 0.02) m from the CG), world frame
+    nose = np.asarray(trajectory.position) + np.einsum("tij,j->ti", np.asarray(jax.vmap(quat_to_mat)(trajectory.quaternion)), [0.8, 0.0, 0.02])
+    radial = np.hypot(nose[:, 1], nose[:, 2])
+    assert radial[0] > 0.25  # it would pass outside the tube's ring of bars (0.20 m)
+    in_tube = (nose[:, 0] > 1.0) & (nose[:, 0] < 2.8)  # between the tube's entrance and its end
+    assert in_tube.sum() >= 10 and radial[in_tube].max() < 0.2  # it went through inside the ring
+    assert nose[-1, 0] > 2.8  # and out of the far end: the bars (frictionless) did not stop it
     assert float(trajectory.velocity[-1, 0]) > 0.5

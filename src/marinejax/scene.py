@@ -14,6 +14,13 @@ Give the scene's geoms `priority="1"` so that their contact parameters win over 
 (MuJoCo otherwise takes the larger friction of the two geoms, and a vehicle's geoms have MuJoCo's
 default of 1).
 
+Which geoms touch (MuJoCo's contype/conaffinity bits): a vehicle's collision geoms have bit 1, and
+its hull's (the body, not appendages such as fins) also bit 2; a scene geom with MuJoCo's default
+(contype = conaffinity = 1) touches every collision geom, one with contype = conaffinity = 2 only
+hulls. MJX collides every pair that may touch at every step, so a geom that only a hull can reach
+first should say so (the torpedo dock's bars: the fins, 1.5 m behind the nose, reach them only
+after the task has ended).
+
 Scenes shipped: open_water (the default; no contacts, a seabed drawn 10 m below for videos),
 seabed (a hard flat seabed at world z = −5 m), wall (that seabed and a wall, the plane x = 2 m),
 rov_dock (an ROV docking cage with a funnel, landing point at the origin) and torpedo_dock (a cone

@@ -54,10 +54,11 @@ def test_the_latch_closes_on_a_nose_inside_the_tube_and_stays_closed(env):
         assert float(advance(task, _at(env, nose), info).docked) == docked, nose
     assert float(advance(task, _at(env, (1.05, 0.0, 0.0), speed=-0.1), info).docked) == 0.0  # moving backwards
     latched = advance(task, _at(env, (1.05, 0.05, 0.0), yaw=0.1), {**info, "time": jnp.asarray(31.5)})
-    assert float(latched.miss) == -1.0
+    assert float(latched.miss) == -1.0 and float(latched.latched) == 1.0
     np.testing.assert_allclose(latched.at_dock, [0.05, np.degrees(0.1), abs(float(task.speed) - float(latched.along_speed)), 31.5], rtol=1e-4)
     later = advance(latched, _at(env, (5.0, 3.0, 0.0)), {**info, "time": jnp.asarray(40.0)})
     assert float(later.docked) == 1.0 and np.array_equal(later.at_dock, latched.at_dock)  # held, wherever the vehicle goes on
+    assert float(later.latched) == 0.0  # the latch closed one step earlier
     # passing the entrance's plane outside the tube is a miss, kept with its distance from the axis
     missed = advance(task, _at(env, (1.05, 3.0, 4.0)), info)
     assert float(missed.miss) == pytest.approx(5.0, rel=1e-5) and float(missed.docked) == 0.0
@@ -82,9 +83,13 @@ def test_errors_measure_the_miss_and_keep_their_values_at_docking(env):
     assert {k: round(float(v), 5) for k, v in after.items()} == {
         "position_error": 0.0, "lateral_error": 0.03, "heading_error_deg": 2.0, "speed_error": 0.1, "time_to_dock": 25.0,
         "cross_track_error": 0.0, "impact_force": 0.0, "docked": 1.0}
-    terms = jax.jit(env.reward_terms)(_at(env, (8.0, 2.0, 0.0), yaw=0.5), latched, jnp.ones(env.action_size))
-    assert {k: float(v) for k, v in terms.items() if v != 0} == {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0,
-                                                                 "docked": 1.0}
+    # once latched: the best value of every term, and the docking bonus only on the step the latch closes
+    reward_terms = jax.jit(env.reward_terms)
+    for latch_step in (1.0, 0.0):
+        now = {**latched, "task": latched["task"].replace(latched=jnp.asarray(latch_step))}
+        terms = reward_terms(_at(env, (8.0, 2.0, 0.0), yaw=0.5), now, jnp.ones(env.action_size))
+        assert {k: float(v) for k, v in terms.items() if v != 0} == {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0,
+                                                                     **({"docked": 1.0} if latch_step else {})}
 
 
 def test_line_of_sight_flies_the_remus_into_the_dock(env):

@@ -99,7 +99,7 @@ class RewardConfig:
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
     gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle;
     proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond;
-    docked (torpedo docking): 1 on every step once the vehicle is latched in the dock.
+    docked (torpedo docking): 1 on the step the latch closes.
     """
 
     position: float = 2.0

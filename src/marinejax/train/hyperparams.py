@@ -103,7 +103,7 @@ _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     ),
 }
 # Torpedo docking (the same task name as the ROVs' docking, another class): a straight path ending in
-# the funnel, so the path recipe; not yet one that docks (seed 0: 11 % of episodes, docs/results.md).
+# the funnel, so the path recipe (docs/results.md: seeds 0-4).
 _TUNED_ENVS.update({f"{v}-Docking{d}": (_PATH, {}) for v in ("Remus100", "Remus100FourFin") for d in ("", "Disturbed")})
 
 
