@@ -178,6 +178,6 @@ class TorpedoDocking(PathFollowing):
         threshold = self.config.impact_threshold
         terms = {**super().reward_terms(vs, info, action), "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold,
                  "docked": task.latched}
-        # latched: the best value of every term (1 for the bounded ones, 0 for the penalties)
+        # latched: the best value of every term (1 for the bounded ones, 0 for the penalties), the bonus unchanged
         best = {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0, "docked": task.latched}
         return {k: jnp.where(task.docked > 0, best.get(k, 0.0), v) for k, v in terms.items()}
