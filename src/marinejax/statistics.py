@@ -3,7 +3,7 @@
 Per episode, the mean position error over the task's evaluation window (last second of station
 keeping, after the first 2 s of tracking, once the reference has ramped up); over episodes, the
 mean, median and 95th percentile, and the success rate (that per-episode error below the task's
-`success_threshold_m`).
+`success_threshold_m`, and where the task sets `success_heading_deg` its mean heading error below that).
 """
 
 from __future__ import annotations
@@ -60,13 +60,16 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
 
 
 def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
-    """Statistics over episodes of the task's window error; success below the task's threshold; the
+    """Statistics over episodes of the task's window error; success below the task's thresholds; the
     mean over the window of each other error (`<name>_mean`, e.g. heading_error_mean_deg) and its unit
     (`units`: name → unit, `MarineEnv.error_units`)."""
     success_m = env.success_threshold_m
     mask = np.asarray(env.error_window(result["time"]))
     per_episode = result["error"][:, mask].mean(axis=1)
     ended = result["done"].max(axis=1) > 0
+    success = (per_episode < success_m) & ~ended
+    if env.success_heading_deg is not None:
+        success &= result["heading_error_deg"][:, mask].mean(axis=1) < env.success_heading_deg
     others = {_mean_name(name): float(result[name][:, mask].mean()) for name in env.error_names if name != "position_error"}
     return {
         "episodes": int(per_episode.size),
@@ -75,8 +78,9 @@ def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
         "position_error_median_m": float(np.median(per_episode)),
         "position_error_p95_m": float(np.percentile(per_episode, 95)),
         **others,
-        "success_rate": float(np.mean((per_episode < success_m) & ~ended)),
+        "success_rate": float(np.mean(success)),
         "success_threshold_m": success_m,
+        "success_heading_deg": env.success_heading_deg,
         "terminated_episodes": int(ended.sum()),
         "units": {name: env.error_units[error] for error, name in zip(env.error_names, map(_mean_name, env.error_names))
                   if name in others},

@@ -84,7 +84,7 @@ def test_station_reward_is_largest_at_zero_error(sk):
 
     best = reward(at(task.position, task.yaw))
     w = sk.config.reward
-    assert best == pytest.approx(w.position + w.precision + w.upright + w.heading, rel=1e-5)
+    assert best == pytest.approx(w.position + w.precision + w.upright + w.heading + w.heading_precision, rel=1e-5)
     worse = [
         at(task.position + jnp.array([0.05, 0, 0]), task.yaw),
         at(task.position, task.yaw + 0.2),
@@ -107,6 +107,7 @@ def test_station_reward_terms_follow_their_formulas(sk):
     assert float(terms["position"]) == pytest.approx(1 / (1 + (d / w.position_scale) ** 2), rel=1e-5)
     assert float(terms["precision"]) == pytest.approx(math.exp(-d / w.precision_scale), rel=1e-4)
     assert float(terms["heading"]) == pytest.approx((1 + math.cos(0.3)) / 2, rel=1e-5)
+    assert float(terms["heading_precision"]) == pytest.approx(math.exp(-0.3 / w.heading_precision_scale), rel=1e-4)
     assert float(errors["heading_error_deg"]) == pytest.approx(math.degrees(0.3), rel=1e-4)
     assert float(terms["effort"]) == pytest.approx(-0.25, rel=1e-6)
     assert float(terms["smoothness"]) == pytest.approx(-0.25, rel=1e-6)  # last action was zero

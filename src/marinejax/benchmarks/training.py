@@ -101,7 +101,11 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
     return {
         "env": env_name, "seed": seed, "run_dir": str(run_dir),
         "error_mean_m": ev["position_error_mean_m"], "error_p95_m": ev["position_error_p95_m"],
+        "heading_error_mean_deg": ev.get("heading_error_mean_deg"),
         "success_rate": ev["success_rate"], "checkpoint": ev["checkpoint"],
+        # the training evaluations' window error (m) of the best and of the last checkpoint: convergence
+        "best_eval_error_m": (summary.get("best") or {}).get("window_error"),
+        "last_eval_error_m": (summary.get("last_eval") or {}).get(WINDOW_ERROR),
         "env_steps": summary["env_steps"], "wall_time_s": summary["wall_time_s"],
         "target_m": target,
         "target_steps": reached.get("step"), "target_wall_s": reached.get("elapsed"),
@@ -115,6 +119,7 @@ def aggregate(rows: list[dict[str, Any]], target: float) -> dict[str, Any]:
     out = {
         "env": rows[0]["env"], "seeds": [r["seed"] for r in rows], "errors_m": err.tolist(),
         "error_median_m": float(np.median(err)), "error_worst_m": float(err.max()),
+        **_median_worst("heading_error_deg", [r.get("heading_error_mean_deg") for r in rows]),
         "success_median": float(np.median([r["success_rate"] for r in rows])),
         "success_worst": float(min(r["success_rate"] for r in rows)),
         "wall_median_s": float(np.median([r["wall_time_s"] for r in rows])),
@@ -126,6 +131,13 @@ def aggregate(rows: list[dict[str, Any]], target: float) -> dict[str, Any]:
         out["target_steps_median"] = float(np.median([r["target_steps"] for r in reached]))
         out["target_wall_median_s"] = float(np.median([r["target_wall_s"] for r in reached]))
     return out
+
+
+def _median_worst(name: str, values: list) -> dict[str, float]:
+    """`<name>_median` and `<name>_worst` (the largest) of values that every seed has, else nothing."""
+    if not values or any(v is None for v in values):
+        return {}
+    return {f"{name}_median": float(np.median(values)), f"{name}_worst": float(max(values))}
 
 
 def plot_seeds(env_name: str, rows: list[dict[str, Any]], target: float, out: Path) -> Path:
@@ -200,7 +212,8 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
             row = run_seed(env_name, seed, out_dir / env_name / f"seed-{seed}", agent, env_overrides,
                            args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache,
                            algorithm=args.algo)
-            print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m, success {100 * row['success_rate']:.0f} %, "
+            heading = "" if row["heading_error_mean_deg"] is None else f", heading {row['heading_error_mean_deg']:.2f}°"
+            print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m{heading}, success {100 * row['success_rate']:.0f} %, "
                   f"training {row['wall_time_s']:.0f} s", flush=True)
             rows.append(row)
         agg = aggregate(rows, args.target_error)

@@ -202,6 +202,8 @@ class MarineEnv(Env):
     # the unit of each of the task's errors (`errors`), for reports; a task with other errors adds them
     error_units = types.MappingProxyType({"position_error": "m", "heading_error_deg": "°", "speed_error": "m/s"})
     success_threshold_m = 0.1  # m: an episode succeeds when its mean error over the window is below this
+    # °: where set, an episode succeeds only if its mean heading error over the window is also below this
+    success_heading_deg: float | None = None
 
     def __init__(self, vehicle: str | Vehicle, config: EnvConfig):
         self.config = config

@@ -71,6 +71,7 @@ class DockTask:
 
 class Docking(StationKeeping):
     config_class = DockingConfig
+    success_heading_deg = None  # `docked`, the task's own success, requires the heading within dock_heading
     error_units = types.MappingProxyType({**StationKeeping.error_units, "lateral_error": "m", "impact_force": "N", "docked": ""})
     success_threshold_m = 0.05
 

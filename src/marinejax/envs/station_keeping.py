@@ -1,4 +1,4 @@
-"""Station keeping: hold a position and heading drawn per episode.
+"""Station keeping (pose keeping): hold a position and heading drawn per episode.
 
 Target: position uniform in a box around (0, 0, −5) m (±`target_range` horizontally and vertically)
 and a yaw uniform in (−π, π]. The vehicle starts per `reset` around it.
@@ -13,7 +13,10 @@ Observation (all in the body frame FLU unless stated), size 18 + number of actio
   [-4:-1] leaky integral of the position error, m s (see `base`; absent if integral_time_constant = 0)
   [-1]    leaky integral of the heading error, rad s
 Reward position term: 1/(1 + (d/position_scale)^2), the form of MarineGym's 0.5/(1 + (1.2 d)^2),
-with a 1 m scale by default.
+with a 1 m scale by default; `precision` and `heading_precision` (exp(−|heading error| / 0.1 rad))
+are sharp near zero error, where those terms and the heading's (1 + cos)/2 are flat. An episode
+succeeds when its mean position error over the last second is under `success_threshold_m` and its
+mean heading error under `success_heading_deg`.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.envs.base import EnvConfig, MarineEnv
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, heading_error
 from marinejax.physics import VehicleState
 
 
@@ -32,6 +35,7 @@ from marinejax.physics import VehicleState
 class StationKeepingConfig(EnvConfig):
     target_depth: float = -5.0  # m, world z of the box centre
     target_range: float = 1.0  # m, target drawn in ±target_range per axis around (0, 0, target_depth)
+    reward: RewardConfig = RewardConfig(heading_precision=1.0, heading_precision_scale=0.1)
 
 
 @struct.dataclass
@@ -43,6 +47,7 @@ class StationTarget:
 class StationKeeping(MarineEnv):
     config_class = StationKeepingConfig
     error_window_description = "last 1 s of each episode"
+    success_heading_deg = 5.0
 
     def error_window(self, time):
         """The last second of the episode: the vehicle has arrived, how well does it hold?"""
@@ -75,5 +80,6 @@ class StationKeeping(MarineEnv):
         return {
             "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
             "precision": jnp.exp(-d / r.precision_scale),
+            "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, task.yaw)) / r.heading_precision_scale),
             **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
         }
