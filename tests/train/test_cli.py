@@ -42,8 +42,10 @@ def marinejax(*args, timeout=600, cwd=None, extra_env=None):
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     run = tmp_path_factory.mktemp("runs") / "sk"
-    # a relative run directory, as users type it
-    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", "sk", *TINY, cwd=run.parent)
+    # a relative run directory, as users type it; the linear learning-rate schedule, through Brax's
+    # optimizer here and in the resumed run (test_learning_rate.py checks its values)
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", "sk", *TINY, "--ppo", "learning_rate_schedule=linear",
+                     cwd=run.parent)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run.parent / "train.stdout").write_text(proc.stdout)
     return run
@@ -55,6 +57,7 @@ def test_train_writes_a_complete_run_directory(run_dir):
         assert (run_dir / name).exists(), name
     config = json.loads((run_dir / "config.json").read_text())
     assert config["env"] == "BlueROV2Heavy-StationKeeping" and config["ppo"]["num_envs"] == 8
+    assert config["ppo"]["learning_rate_schedule"] == "linear" and config["ppo"]["decay_start"] == 0.5
     assert config["env_config"]["episode_length"] == 20
     records = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     assert [r["step"] for r in records] == sorted(r["step"] for r in records) and records[-1]["step"] >= 1600
@@ -139,7 +142,9 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["train", "BlueROV2Heavy-StationKeeping", "--coordinator", "127.0.0.1:1234", "--num-processes", "2", "--process-id", "2"],
          "--process-id must be in 0..1"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "learning_rate_schedule=cosine"],
-         "'learning_rate_schedule' must be one of ['none', 'adaptive_kl'], got 'cosine'"),
+         "'learning_rate_schedule' must be one of ['none', 'adaptive_kl', 'linear'], got 'cosine'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "final_learning_rate=1"],
+         "'final_learning_rate' must be between 0 and learning_rate (0.001), got 1.0"),
         (["train", "BlueROV2Heavy-StationKeeping", "--env", "reward.efort=1"], "unknown config key 'reward.efort'"),
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "num_envs"], "--ppo expects KEY=VALUE"),
         (["eval", "/no/such/run"], "no such run directory or checkpoint"),
@@ -243,6 +248,13 @@ def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_
     assert env["seeds"] == [0, 1] and len(env["errors_m"]) == 2
     assert env["error_worst_m"] == max(env["errors_m"]) and env["error_median_m"] <= env["error_worst_m"]
     assert env["reached_target_during_training"] == 2 and env["target_steps_median"] > 0
+    for seed in result["seeds"]:  # the latest checkpoint on the best's episodes; the same numbers where it is the best
+        summary = json.loads((Path(seed["run_dir"]) / "summary.json").read_text())
+        assert seed["latest_checkpoint"] == str(sorted((Path(seed["run_dir"]) / "checkpoints").iterdir())[-1])
+        assert summary["evaluation_latest"]["seed"] == summary["evaluation"]["seed"] == 12345
+        assert (seed["latest_error_mean_m"] == seed["error_mean_m"]) == (seed["latest_checkpoint"] == seed["checkpoint"])
+    ratios = [s["latest_error_mean_m"] / s["error_mean_m"] for s in result["seeds"]]
+    assert env["latest_over_best_worst"] == pytest.approx(max(ratios))
     rows = (tmp_path / "results.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[0].startswith("env,seed,")
     assert (tmp_path / "BlueROV2Heavy-StationKeeping-seeds.png").stat().st_size > 10_000

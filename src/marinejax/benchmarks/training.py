@@ -5,8 +5,9 @@
 
 Each seed is exactly `marinejax train ENV --seed S` (the tuned settings plus any overrides) followed
 by the evaluation of `marinejax eval` (64 deterministic episodes, seed 12345, the task's error
-window, the best checkpoint). Per env it prints and writes the median and worst (largest) final
-error over the seeds, success rates, training wall time (compilation included) and the time to
+window, the best checkpoint), and of the latest checkpoint on the same episodes (convergence: is the
+final policy as good as the best?). Per env it prints and writes the median and worst (largest) final
+error over the seeds, the latest checkpoint's error over the best's, success rates, training wall time (compilation included) and the time to
 target: env steps and wall seconds at the first evaluation during training whose error met
 `--target-error`. Files in --out-dir: results.json, results.csv (one row per seed),
 <ENV>-seeds.png (every seed's learning curve against env steps and wall time, with the median and
@@ -75,8 +76,11 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
 
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
-    if summary.get("status") == "finished" and "evaluation" in summary:
+    if summary.get("status") == "finished" and "evaluation_latest" in summary:
         log(f"{env_name} seed {seed}: finished earlier, reusing {run_dir}")
+    elif summary.get("status") == "finished":  # evaluated before the latest checkpoint was
+        log(f"{env_name} seed {seed}: finished earlier, evaluating its checkpoints in {run_dir}")
+        evaluate_finished_run(run_dir, summary, episodes=episodes, video=False, latest=True)
     else:
         resume = (run_dir / "config.json").exists()
         config = load_train_config(run_dir) if resume else None
@@ -95,8 +99,8 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
 
         summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=stop_at_target,
                         trace_cache=trace_cache)
-        evaluate_finished_run(run_dir, summary, episodes=episodes, video=False)
-    ev = summary["evaluation"]
+        evaluate_finished_run(run_dir, summary, episodes=episodes, video=False, latest=True)
+    ev, latest = summary["evaluation"], summary["evaluation_latest"]
     reached = summary.get("time_to_target") or {}
     return {
         "env": env_name, "seed": seed, "run_dir": str(run_dir),
@@ -106,6 +110,10 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         # the training evaluations' window error (m) of the best and of the last checkpoint: convergence
         "best_eval_error_m": (summary.get("best") or {}).get("window_error"),
         "last_eval_error_m": (summary.get("last_eval") or {}).get(WINDOW_ERROR),
+        # the latest checkpoint on the same evaluation episodes as the best (the training evaluations
+        # draw new episodes each time, so the best of them is partly the luck of its episodes)
+        "latest_error_mean_m": latest["position_error_mean_m"], "latest_heading_error_mean_deg": latest.get("heading_error_mean_deg"),
+        "latest_checkpoint": latest["checkpoint"],
         "env_steps": summary["env_steps"], "wall_time_s": summary["wall_time_s"],
         "target_m": target,
         "target_steps": reached.get("step"), "target_wall_s": reached.get("elapsed"),
@@ -120,6 +128,7 @@ def aggregate(rows: list[dict[str, Any]], target: float) -> dict[str, Any]:
         "env": rows[0]["env"], "seeds": [r["seed"] for r in rows], "errors_m": err.tolist(),
         "error_median_m": float(np.median(err)), "error_worst_m": float(err.max()),
         **_median_worst("heading_error_deg", [r.get("heading_error_mean_deg") for r in rows]),
+        **_median_worst("latest_over_best", [r["latest_error_mean_m"] / r["error_mean_m"] for r in rows]),
         "success_median": float(np.median([r["success_rate"] for r in rows])),
         "success_worst": float(min(r["success_rate"] for r in rows)),
         "wall_median_s": float(np.median([r["wall_time_s"] for r in rows])),
@@ -214,7 +223,8 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
                            algorithm=args.algo)
             heading = "" if row["heading_error_mean_deg"] is None else f", heading {row['heading_error_mean_deg']:.2f}°"
             print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m{heading}, success {100 * row['success_rate']:.0f} %, "
-                  f"training {row['wall_time_s']:.0f} s", flush=True)
+                  f"training {row['wall_time_s']:.0f} s; latest checkpoint {row['latest_error_mean_m']:.4f} m "
+                  f"({row['latest_error_mean_m'] / row['error_mean_m']:.2f}× the best)", flush=True)
             rows.append(row)
         agg = aggregate(rows, args.target_error)
         agg["plot"] = str(plot_seeds(env_name, rows, args.target_error, out_dir / f"{env_name}-seeds.png"))

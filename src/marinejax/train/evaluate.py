@@ -38,11 +38,18 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     return _write(env, result, summary, f"{config.env}: checkpoint {ckpt.name}, episode 0", out_dir, video)
 
 
-def evaluate_finished_run(run_dir: Path, summary: dict[str, Any], episodes: int = 64, video: bool = True) -> dict[str, Any]:
+def evaluate_finished_run(run_dir: Path, summary: dict[str, Any], episodes: int = 64, video: bool = True,
+                          latest: bool = False) -> dict[str, Any]:
     """The final evaluation of a run that `train` just finished: `evaluate_run` of its best
-    checkpoint, recorded as summary["evaluation"] in its summary.json; returns the evaluation."""
+    checkpoint, recorded as summary["evaluation"] in its summary.json; returns the evaluation. With
+    `latest`, also the newest checkpoint on the same episodes (into eval-latest/, without video;
+    the best's evaluation where the two are one), as summary["evaluation_latest"]."""
     result = evaluate_run(run_dir, episodes=episodes, video=video)
     summary["evaluation"] = result
+    if latest:
+        newest = latest_checkpoint(Path(run_dir))
+        summary["evaluation_latest"] = (result if str(newest) == result["checkpoint"] else
+                                        evaluate_run(run_dir, Path(run_dir) / "eval-latest", episodes, video=False, which="latest"))
     (Path(run_dir) / "summary.json").write_text(json.dumps(summary, indent=2))
     return result
 

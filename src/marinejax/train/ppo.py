@@ -23,8 +23,9 @@ NETWORK_CONFIG = "ppo_network_config.json"
 # Brax's learning-rate schedules: "none" (constant `learning_rate`) or "adaptive_kl" (after every
 # update epoch the rate is divided by 1.5 where the policy's mean KL divergence exceeded 2 ×
 # `desired_kl` and multiplied by 1.5 where it fell under half of it, within 1e-5–1e-2; the schedule
-# of rsl_rl's legged-robot PPO).
-LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl")
+# of rsl_rl's legged-robot PPO); and ours, "linear": `learning_rate` until `decay_start` of the run's
+# env steps, then falling linearly to `final_learning_rate` at `num_timesteps` (`learning_rate_at`).
+LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl", "linear")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,6 +41,8 @@ class Config:
     learning_rate: float = 3e-4  # the initial rate with "adaptive_kl"
     learning_rate_schedule: str = "none"  # LEARNING_RATE_SCHEDULES
     desired_kl: float = 0.01  # the KL divergence "adaptive_kl" aims at, per update
+    decay_start: float = 0.5  # "linear": the fraction of num_timesteps after which the rate falls
+    final_learning_rate: float = 0.0  # "linear": the rate at num_timesteps
     entropy_cost: float = 1e-3
     discounting: float = 0.97
     gae_lambda: float = 0.95
@@ -70,6 +73,11 @@ class Config:
         if self.learning_rate_schedule not in LEARNING_RATE_SCHEDULES:
             raise UserError(f"ppo 'learning_rate_schedule' must be one of {list(LEARNING_RATE_SCHEDULES)}, "
                             f"got {self.learning_rate_schedule!r}")
+        if not 0 <= self.decay_start < 1:
+            raise UserError(f"ppo 'decay_start' must be in [0, 1) (a fraction of num_timesteps), got {self.decay_start}")
+        if not 0 <= self.final_learning_rate <= self.learning_rate:
+            raise UserError(f"ppo 'final_learning_rate' must be between 0 and learning_rate ({self.learning_rate}), "
+                            f"got {self.final_learning_rate}")
         if not self.desired_kl > 0:
             raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
         if not (self.discounting < 1 and self.gae_lambda <= 1):
@@ -96,11 +104,53 @@ def network_factory(config: Config, observation_size: int | Mapping | None = Non
     )
 
 
+def learning_rate_at(config: Config, env_steps):
+    """The learning rate after `env_steps` env steps of a run (counted across resumes): constant but
+    for the "linear" schedule."""
+    import jax.numpy as jnp
+
+    if config.learning_rate_schedule != "linear":
+        return jnp.asarray(config.learning_rate)
+    start = config.decay_start * config.num_timesteps
+    fraction = jnp.clip((env_steps - start) / (config.num_timesteps - start), 0.0, 1.0)
+    return config.learning_rate + fraction * (config.final_learning_rate - config.learning_rate)
+
+
+class _ScheduledRate(float):
+    """A learning rate that Brax's PPO takes in place of its float `learning_rate`: Brax hands it to
+    optax's Adam, which calls a callable rate with its update count, and reports it as its
+    `learning_rate` metric through `jnp.array`, which reads the float (the initial rate). Brax's
+    train has no other way in for a schedule."""
+
+    def __new__(cls, schedule: Callable, initial: float):
+        rate = super().__new__(cls, initial)
+        rate.schedule = schedule
+        return rate
+
+    def __call__(self, count):
+        return self.schedule(count)
+
+
+def brax_learning_rate(config: Config, steps_done: int = 0) -> float:
+    """The `learning_rate` to give `brax.training.agents.ppo.train` for a call that starts after
+    `steps_done` env steps of the run: the float, or the schedule (`learning_rate_at`)."""
+    if config.learning_rate_schedule != "linear":
+        return config.learning_rate
+    # one training step: num_updates_per_batch × num_minibatches optimizer updates on
+    # batch_size × unroll_length × num_minibatches env steps (Brax's `env_step_per_training_step`)
+    updates_per_step = config.num_updates_per_batch * config.num_minibatches
+    env_steps_per_step = config.batch_size * config.unroll_length * config.num_minibatches
+    return _ScheduledRate(lambda count: learning_rate_at(config, steps_done + count / updates_per_step * env_steps_per_step),
+                          float(learning_rate_at(config, steps_done)))
+
+
 def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, progress_fn, save_fn, restore: Path | None,
         devices: int, checkpoint_dir: Path) -> None:
     """Brax PPO on `env`; `save_fn(step, params)` after every evaluation (step counted from this call's start)."""
     from brax.training.agents.ppo import train as ppo_train
 
+    # a resumed run continues its schedule where it stopped (Brax starts a new optimizer state)
+    steps_done = config.num_timesteps - num_timesteps
     ppo_train.train(
         environment=env,
         num_timesteps=num_timesteps,
@@ -111,8 +161,8 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         batch_size=config.batch_size,
         num_minibatches=config.num_minibatches,
         num_updates_per_batch=config.num_updates_per_batch,
-        learning_rate=config.learning_rate,
-        learning_rate_schedule=config.learning_rate_schedule.upper(),
+        learning_rate=brax_learning_rate(config, steps_done),
+        learning_rate_schedule="ADAPTIVE_KL" if config.learning_rate_schedule == "adaptive_kl" else "NONE",
         desired_kl=config.desired_kl,
         entropy_cost=config.entropy_cost,
         discounting=config.discounting,
