@@ -5,11 +5,11 @@
 
 Each seed is exactly `marinejax train ENV --seed S` (the tuned settings plus any overrides) followed
 by the evaluation of `marinejax eval` (64 deterministic episodes, seed 12345, the task's error
-window, the best checkpoint), and of the latest checkpoint on the same episodes (convergence: is the
-final policy as good as the best?). Per env it prints and writes the median and worst (largest) final
-error over the seeds, the latest checkpoint's error over the best's, success rates, training wall time (compilation included) and the time to
-target: env steps and wall seconds at the first evaluation during training whose error met
-`--target-error`. Files in --out-dir: results.json, results.csv (one row per seed),
+window, the best checkpoint), and of the latest checkpoint on the same episodes (convergence: is
+the final policy as good as the best?). Per env it prints and writes the median and worst (largest)
+final error over the seeds, the latest checkpoint's error over the best's, success rates, training
+wall time (compilation included) and the time to target: env steps and wall seconds at the first
+evaluation during training whose error met `--target-error`. Files in --out-dir: results.json, results.csv (one row per seed),
 <ENV>-seeds.png (every seed's learning curve against env steps and wall time, with the median and
 min-max band), and each seed's run directory <ENV>/seed-<S>/.
 

@@ -38,7 +38,7 @@ class Config:
     batch_size: int = 256
     num_minibatches: int = 8
     num_updates_per_batch: int = 4
-    learning_rate: float = 3e-4  # the initial rate with "adaptive_kl"
+    learning_rate: float = 3e-4  # the initial rate with "adaptive_kl" and "linear"
     learning_rate_schedule: str = "none"  # LEARNING_RATE_SCHEDULES
     desired_kl: float = 0.01  # the KL divergence "adaptive_kl" aims at, per update
     decay_start: float = 0.5  # "linear": the fraction of num_timesteps after which the rate falls
