@@ -2,6 +2,8 @@
 handed drives the optimizer Brax builds (gradient clipping, then Adam) update by update, resumed runs
 included. The CLI tests train and resume with it through Brax."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -58,8 +60,6 @@ def test_the_rate_handed_to_brax_drives_adam_update_by_update_and_a_resumed_run_
     ({"learning_rate_schedule": "cosine"}, "must be one of ['none', 'adaptive_kl', 'linear'], got 'cosine'"),
 ])
 def test_bad_schedule_settings_name_the_value_and_the_valid_range(overrides, message):
-    import dataclasses
-
     with pytest.raises(UserError) as err:
         dataclasses.replace(CONFIG, **overrides)
     assert message in str(err.value)

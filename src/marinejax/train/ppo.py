@@ -105,8 +105,8 @@ def network_factory(config: Config, observation_size: int | Mapping | None = Non
 
 
 def learning_rate_at(config: Config, env_steps):
-    """The learning rate after `env_steps` env steps of a run (counted across resumes): constant but
-    for the "linear" schedule."""
+    """The learning rate after `env_steps` env steps of a run (counted across resumes) for the
+    "linear" schedule; otherwise `learning_rate` ("adaptive_kl": its initial rate)."""
     import jax.numpy as jnp
 
     if config.learning_rate_schedule != "linear":
