@@ -89,7 +89,7 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.progress import TrainingProgress
     from marinejax.train.hyperparams import load_train_config
-    from marinejax.train.runner import check_devices, check_resumable, train
+    from marinejax.train.runner import check_devices, check_resumable, train, use_cpu_devices
 
     console = make_console()
     target = _check_target(args.target_error)
@@ -115,6 +115,8 @@ def _train(args: argparse.Namespace) -> int:
             env_overrides["randomization.enabled"] = True
         config = with_overrides(tuned_config(args.env_name, args.algo or "ppo"), ppo=parse_key_values(args.ppo, "--ppo"),
                                 agent=agent, env=env_overrides)
+    use_cpu_devices(args.devices or config.agent.cpu_devices)  # before anything starts JAX's backend
+    if not args.resume:
         from marinejax.train.hyperparams import build_env
 
         build_env(config)  # validate the env overrides before creating a run directory
@@ -354,8 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--ppo", action="append", metavar="KEY=VALUE", help="override a PPO setting, e.g. --ppo learning_rate=1e-3")
     tr.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting, e.g. --env reward.effort=0.1")
     tr.add_argument("--devices", type=int, metavar="N",
-                    help="train on the first N local devices (default: all of jax.local_devices()); the env batch is "
-                         "split over them")
+                    help="train on N devices, the env batch split over them: on a CPU host the cores split into N JAX "
+                         "devices (default: the recipe's cpu_devices), on GPUs the first N (default: all)")
     tr.add_argument("--coordinator", metavar="HOST:PORT",
                     help="train with several processes (hosts): the address of process 0, reachable from every process; "
                          "with --num-processes and --process-id (jax.distributed.initialize)")

@@ -266,7 +266,9 @@ def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_
 @pytest.mark.slow
 def test_bench_training_profile_splits_a_training_step_into_parts_that_sum_to_the_measured_step(tmp_path):
     tiny = [a for a in TINY if a not in ("--episodes", "4")]  # 1600 env steps, 3 evaluations
-    proc = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--out-dir", str(tmp_path), *tiny)
+    # on two CPU devices: the parts and the step on one, then the step on both
+    proc = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--out-dir", str(tmp_path), *tiny,
+                     "--ppo", "cpu_devices=2")
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads((tmp_path / "profile-BlueROV2Heavy-StationKeeping.json").read_text())
     parts, shares = result["parts_s"], result["shares"]
@@ -277,26 +279,29 @@ def test_bench_training_profile_splits_a_training_step_into_parts_that_sum_to_th
     assert result["env_steps_per_training_step"] == 8 * 2 * 5  # batch_size x num_minibatches x unroll_length
     assert result["training_env_steps_per_s"] == pytest.approx(80 / result["training_step_s"])
     recipe = result["recipe_s"]
-    assert recipe["training"] == pytest.approx(math.ceil(1600 / 80) * result["training_step_s"])
-    assert recipe["evaluations"] == pytest.approx(3 * result["evaluation_s"]) and recipe["compilation"] > 0
+    assert result["cpu_devices"] == 2 and result["training_step_on_cpu_devices_s"] > 0
+    assert result["cpu_devices_speedup"] == pytest.approx(result["training_step_s"] / result["training_step_on_cpu_devices_s"])
+    assert recipe["training"] == pytest.approx(math.ceil(1600 / 80) * result["training_step_on_cpu_devices_s"])
+    assert recipe["compilation"] > 0
     assert sum(result["recipe_shares"].values()) == pytest.approx(1.0)
     assert "PPO loss and gradient" in proc.stdout and "training step, measured in ppo.train" in proc.stdout
+    assert "the recipe's 2 CPU devices: training step" in proc.stdout
     refused = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--algo", "sac", timeout=120)
     assert refused.returncode == 2 and "--profile profiles PPO" in refused.stderr
 
 
 @pytest.mark.slow
-def test_training_on_two_virtual_cpu_devices_splits_the_batch_and_learns(tmp_path):
+def test_training_on_two_cpu_devices_splits_the_batch_and_learns(tmp_path):
+    # the recipe's cpu_devices: the CLI splits the host into two JAX devices before JAX starts
     run = tmp_path / "two"
-    proc = marinejax("train", "BlueROV2Heavy-CircleTracking", "--run-dir", str(run), "--devices", "2", "--no-video",
+    proc = marinejax("train", "BlueROV2Heavy-CircleTracking", "--run-dir", str(run), "--no-video", "--ppo", "cpu_devices=2",
                      "--timesteps", "300000", "--episodes", "8", "--ppo", "num_envs=64", "--ppo", "batch_size=64",
-                     "--ppo", "num_evals=4", "--ppo", "num_eval_envs=8",
-                     extra_env={"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}, timeout=900)
+                     "--ppo", "num_evals=4", "--ppo", "num_eval_envs=8", timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert any(name.startswith("step-") for name in traced())  # kept under the devices' pmap too
     assert "64 envs on 2 cpu device(s)" in proc.stdout
     config = json.loads((run / "config.json").read_text())
-    assert len(config["machine"]["devices"]) == 2
+    assert len(config["machine"]["devices"]) == 2 and config["ppo"]["cpu_devices"] == 2
     records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     rewards = [r["eval/episode_reward"] for r in records]
     assert all(math.isfinite(v) for r in records for v in r.values())
@@ -305,9 +310,34 @@ def test_training_on_two_virtual_cpu_devices_splits_the_batch_and_learns(tmp_pat
     assert summary["devices"] == 2 and math.isfinite(summary["evaluation"]["position_error_mean_m"])
 
 
-def test_more_devices_than_there_are_is_a_user_error():
+def test_devices_that_do_not_divide_the_envs_or_none_are_user_errors():
+    # on a CPU host --devices 3 makes three devices, over which 256 envs do not split
     proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--devices", "3", timeout=120)
-    assert proc.returncode == 2 and "devices must be between 1 and the 1 local device(s)" in proc.stderr
+    assert proc.returncode == 2 and "num_envs (256) must be a multiple of the number of devices (3)" in proc.stderr
+    proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--devices", "0", timeout=120)
+    assert proc.returncode == 2 and "devices must be between 1 and the 1 local device(s)" in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize("xla_flags, expected", [("", "True 2"), ("--xla_force_host_platform_device_count=3", "False 3")])
+def test_cpu_devices_are_made_before_jax_starts_unless_xla_flags_set_them(xla_flags, expected):
+    code = ("import jax; from marinejax.train.runner import use_cpu_devices; made = use_cpu_devices(2); "
+            "print(made, jax.local_device_count(), use_cpu_devices(4), jax.local_device_count())")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "XLA_FLAGS": xla_flags})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    count = expected.split()[1]
+    assert proc.stdout.split() == [*expected.split(), "False", count]  # once JAX has started, nothing changes
+
+
+def test_a_recipe_asking_for_more_cpu_devices_than_jax_started_with_warns_and_uses_those_there_are():
+    from marinejax.train.hyperparams import PPOConfig
+    from marinejax.train.runner import check_devices
+
+    with pytest.warns(UserWarning, match=r"trains on 2 CPU devices but JAX started with 1.*use_cpu_devices\(2\)"):
+        assert check_devices(None, PPOConfig(cpu_devices=2)) == 1
+    assert check_devices(None, PPOConfig()) == 1
+    with pytest.raises(Exception, match="'cpu_devices' must be >= 1, got 0"):
+        PPOConfig(cpu_devices=0)
 
 
 def test_key_values_take_json_style_booleans_and_python_literals():

@@ -11,7 +11,8 @@ give the training step as it runs in `ppo.train` (`training/walltime`) and an ev
 (`eval/epoch_eval_time`). "other" is the measured step minus its parts: the scans, the batch's
 shuffling, host transfers (negative where XLA fuses the parts better than it runs them alone).
 The whole recipe's wall time is projected from these and the compilation the short run measured
-(its wall time minus its steady epochs and evaluations).
+(its wall time minus its steady epochs and evaluations). A recipe that trains on several CPU devices
+(`cpu_devices`) has its training step measured on them too, and its projection uses that step.
 """
 
 from __future__ import annotations
@@ -108,12 +109,12 @@ def _parts(env, agent, network_factory) -> dict[str, Any]:
     return {name: times[name]["seconds"] * calls[name] for name in PARTS}
 
 
-def _measured(env, agent, module, steps_per_training_step: int, step_estimate: float) -> dict[str, float]:
+def _measured(env, agent, module, steps_per_training_step: int, step_estimate: float, devices: int = 1) -> dict[str, float]:
     """A short real training with Brax (the same settings): seconds per training step, per
     evaluation, and the compilation and set-up, from Brax's clocks and the wall clock. Brax's first
     two training epochs and first two evaluations each compile (with jax ≥ 0.10 the state it places
     on the devices is sharded unlike what its pmap returns: google/brax#674), so the steady epoch
-    and evaluation are the last of SHORT_EPOCHS."""
+    and evaluation are the last of SHORT_EPOCHS. `devices`: the local devices the batch is split over."""
     from marinejax.envs import wrap_for_training
 
     per_epoch = max(1, math.ceil(TARGET_EPOCH_SECONDS / max(step_estimate, 1e-6)))
@@ -123,7 +124,7 @@ def _measured(env, agent, module, steps_per_training_step: int, step_estimate: f
     module.run(env, short, num_timesteps=short.num_timesteps, seed=agent.seed, wrap_env_fn=wrap_for_training,
                progress_fn=lambda step, metrics: records.append({k: float(metrics[k]) for k in ("eval/epoch_eval_time", "training/walltime")
                                                                  if k in metrics}),
-               save_fn=lambda step, params: None, restore=None, devices=1, checkpoint_dir=None)
+               save_fn=lambda step, params: None, restore=None, devices=devices, checkpoint_dir=None)
     total = time.perf_counter() - start
     if len(records) != SHORT_EPOCHS + 1:
         raise RuntimeError(f"the short training reported {len(records)} evaluations, expected {SHORT_EPOCHS + 1}")
@@ -137,6 +138,8 @@ def profile(env_name: str, agent_overrides: dict | None = None, env_overrides: d
     """Profile the PPO training of `env_name` with its tuned settings (plus overrides): the parts of
     a training step (s per step and share of the measured step, summing to 1 with "other"), the
     measured step, an evaluation, the compilation, and the whole recipe projected from them."""
+    import jax
+
     from marinejax.train.hyperparams import build_env, tuned_config, with_overrides
 
     config = with_overrides(tuned_config(env_name, "ppo"), agent=agent_overrides or {}, env=env_overrides or {})
@@ -147,9 +150,14 @@ def profile(env_name: str, agent_overrides: dict | None = None, env_overrides: d
     measured = _measured(env, agent, module, steps_per_training_step, sum(parts.values()))
     step = measured["training_step"]
     parts["other"] = step - sum(parts.values())
+    # a recipe with several CPU devices: the same step on them, in this run (the parts are one device's)
+    cpu_devices = min(agent.cpu_devices, jax.local_device_count()) if jax.default_backend() == "cpu" else 1
+    on_devices = measured
+    if cpu_devices > 1:
+        on_devices = _measured(env, agent, module, steps_per_training_step, step / cpu_devices, devices=cpu_devices)
     training_steps = math.ceil(agent.num_timesteps / steps_per_training_step)
-    recipe = {"training": training_steps * step, "evaluations": agent.num_evals * measured["evaluation"],
-              "compilation": measured["compilation"]}
+    recipe = {"training": training_steps * on_devices["training_step"], "evaluations": agent.num_evals * on_devices["evaluation"],
+              "compilation": on_devices["compilation"]}
     whole = sum(recipe.values())
     return {
         "env": env_name,
@@ -163,6 +171,9 @@ def profile(env_name: str, agent_overrides: dict | None = None, env_overrides: d
         "training_env_steps_per_s": steps_per_training_step / step,
         "env_alone_env_steps_per_s": steps_per_training_step / parts["env"],
         "evaluation_s": measured["evaluation"],
+        "cpu_devices": cpu_devices,
+        "training_step_on_cpu_devices_s": on_devices["training_step"],
+        "cpu_devices_speedup": step / on_devices["training_step"],
         "recipe_s": recipe,
         "recipe_shares": {name: t / whole for name, t in recipe.items()},
         "recipe_total_s": whole,
@@ -185,8 +196,12 @@ def report(result: dict[str, Any]) -> str:
                  f"{result['env_alone_env_steps_per_s']:,.0f} env steps/s "
                  f"(training runs at {100 * result['training_env_steps_per_s'] / result['env_alone_env_steps_per_s']:.0f} % of the env's rate)")
     lines.append(f"  one evaluation ({s['num_eval_envs']} episodes): {result['evaluation_s']:.2f} s")
+    n = result["cpu_devices"]
+    if n > 1:
+        lines.append(f"  the recipe's {n} CPU devices: training step {result['training_step_on_cpu_devices_s']:.4f} s, "
+                     f"{result['cpu_devices_speedup']:.2f}× the one device's above")
     r, sh = result["recipe_s"], result["recipe_shares"]
-    lines.append(f"  whole recipe ({s['num_timesteps']:,} env steps, {s['num_evals']} evaluations), projected: "
+    lines.append(f"  whole recipe ({s['num_timesteps']:,} env steps, {s['num_evals']} evaluations, {n} device(s)), projected: "
                  f"{result['recipe_total_s']:.0f} s = training {r['training']:.0f} s ({100 * sh['training']:.0f} %) + "
                  f"evaluations {r['evaluations']:.0f} s ({100 * sh['evaluations']:.0f} %) + "
                  f"compilation and set-up {r['compilation']:.0f} s ({100 * sh['compilation']:.0f} %)")

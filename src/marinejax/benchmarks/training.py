@@ -208,6 +208,11 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
     env_overrides = parse_key_values(args.env, "--env")
     out_dir = args.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
+    # before anything starts JAX's backend: as many CPU devices as the recipes train on
+    from marinejax.train.hyperparams import tuned_config, with_overrides
+    from marinejax.train.runner import use_cpu_devices
+
+    use_cpu_devices(max(with_overrides(tuned_config(e, args.algo), agent=agent).agent.cpu_devices for e in args.envs))
     info = machine_info()
     if args.profile:
         return _profile(args, agent, env_overrides, info)

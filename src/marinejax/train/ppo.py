@@ -30,7 +30,8 @@ LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl", "linear")
 
 @dataclasses.dataclass(frozen=True)
 class Config:
-    """Arguments of `brax.training.agents.ppo.train` (see its docstring), plus network sizes."""
+    """Arguments of `brax.training.agents.ppo.train` (see its docstring), plus network sizes and the
+    CPU devices it trains on."""
 
     num_timesteps: int = 3_000_000
     num_envs: int = 256
@@ -56,10 +57,14 @@ class Config:
     num_evals: int = 20
     num_eval_envs: int = 64
     seed: int = 0
+    # On a CPU-only host: the JAX devices the host's cores are split into, each stepping and
+    # updating its share of the envs in parallel (Brax's pmap; `runner.use_cpu_devices`). Part of
+    # the recipe because the random streams, and so the results, depend on it. Ignored on GPU/TPU.
+    cpu_devices: int = 1
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
-                     "num_updates_per_batch", "num_evals", "num_eval_envs"):
+                     "num_updates_per_batch", "num_evals", "num_eval_envs", "cpu_devices"):
             if getattr(self, name) < 1:
                 raise UserError(f"ppo '{name}' must be >= 1, got {getattr(self, name)}")
         if (self.batch_size * self.num_minibatches) % self.num_envs:

@@ -16,7 +16,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import os
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Callable
 
@@ -46,11 +48,34 @@ def machine() -> dict[str, Any]:
             "jax": info["jax"], "python": info["python"]}
 
 
+def use_cpu_devices(n: int) -> bool:
+    """Split this host's CPU into `n` JAX devices (`jax_num_cpu_devices`), as a recipe's
+    `cpu_devices` asks. Only before JAX's first operation, and not where XLA_FLAGS already sets
+    `--xla_force_host_platform_device_count` (that count stays); returns whether it was set."""
+    if n < 1:
+        raise UserError(f"the number of CPU devices must be >= 1, got {n}")
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", ""):
+        return False
+    try:
+        jax.config.update("jax_num_cpu_devices", n)
+    except RuntimeError:  # JAX's backend has started: its devices stay as they are
+        return False
+    return True
+
+
 def check_devices(devices: int | None, agent: PPOConfig | SACConfig) -> int:
-    """The number of local devices to train on (None: all); raises ValueError naming the valid range.
-    With several processes (`jax.distributed`) each trains on as many and the envs are split over all."""
+    """The number of local devices to train on; raises UserError naming the valid range. None: on a
+    CPU host the recipe's `cpu_devices` (fewer, with a warning, where JAX started with fewer: call
+    `use_cpu_devices` first), elsewhere all of `jax.local_devices()`. With several processes
+    (`jax.distributed`) each trains on as many and the envs are split over all."""
     available = jax.local_device_count()
     n = available if devices is None else devices
+    if devices is None and jax.default_backend() == "cpu":
+        n = min(agent.cpu_devices, available)
+        if n < agent.cpu_devices:
+            warnings.warn(f"this recipe trains on {agent.cpu_devices} CPU devices but JAX started with {available}, so its "
+                          f"results will differ from the recipe's: call marinejax.train.runner.use_cpu_devices("
+                          f"{agent.cpu_devices}) before any JAX operation", stacklevel=2)
     if not 1 <= n <= available:
         raise UserError(f"devices must be between 1 and the {available} local device(s) "
                          f"({', '.join(str(d) for d in jax.local_devices())}), got {devices}")
@@ -116,7 +141,7 @@ def train(
     (env steps and wall seconds), and training stops there if `stop_at_target`.
 
     `devices` local devices share the env batch (Brax's pmap; gradients are averaged over them);
-    None uses all of `jax.local_devices()`. `num_envs` must be a multiple of it.
+    None: `check_devices`'s default. `num_envs` must be a multiple of it.
 
     `trace_cache` (a folder) keeps the training env's traced reset and step between runs
     (`envs/trace_cache.py`); the CLI passes one whenever JAX's compilation cache is on.

@@ -41,10 +41,11 @@ class Config:
     num_evals: int = 10
     num_eval_envs: int = 64
     seed: int = 0
+    cpu_devices: int = 1  # on a CPU-only host, the JAX devices its cores are split into (as PPO's)
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "batch_size", "grad_updates_per_step", "max_replay_size", "num_evals",
-                     "num_eval_envs"):
+                     "num_eval_envs", "cpu_devices"):
             if getattr(self, name) < 1:
                 raise UserError(f"sac '{name}' must be >= 1, got {getattr(self, name)}")
         for name in ("learning_rate", "discounting", "reward_scaling", "tau"):
