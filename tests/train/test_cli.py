@@ -330,13 +330,14 @@ def test_cpu_devices_are_made_before_jax_starts_unless_xla_flags_set_them(xla_fl
 
 
 def test_a_recipe_asking_for_more_cpu_devices_than_jax_started_with_warns_and_uses_those_there_are():
+    from marinejax.errors import UserError
     from marinejax.train.hyperparams import PPOConfig
     from marinejax.train.runner import check_devices
 
     with pytest.warns(UserWarning, match=r"trains on 2 CPU devices but JAX started with 1.*use_cpu_devices\(2\)"):
         assert check_devices(None, PPOConfig(cpu_devices=2)) == 1
     assert check_devices(None, PPOConfig()) == 1
-    with pytest.raises(Exception, match="'cpu_devices' must be >= 1, got 0"):
+    with pytest.raises(UserError, match="'cpu_devices' must be >= 1, got 0"):
         PPOConfig(cpu_devices=0)
 
 
