@@ -9,7 +9,9 @@ inference function, or an ONNX model (for onnxruntime, TensorRT, ...).
 
 The exported function is the deterministic policy of the checkpoint (PPO or SAC): the observation
 normalized with the running statistics of training, (obs − mean) / std, an MLP with swish hidden
-layers, and tanh of the mean half of the last layer. Both files carry the same metadata (JSON in
+layers, and tanh of the mean half of the last layer. A mirror-symmetric PPO policy
+(`ppo.Config.mirror_symmetric`) averages that mean with the reflected mean for the reflected
+observation (`envs.symmetry.Mirror`; its signed permutations travel in the files). Both files carry the same metadata (JSON in
 `metadata` of the npz, in the ONNX model's metadata_props): env, checkpoint, control period,
 observation size and layout (`MarineEnv.observation_layout`: per field its slice, unit and frame), observation mode, action size and meaning
 (thruster order), frames and units.
@@ -40,15 +42,27 @@ class PolicyWeights:
     biases: tuple[np.ndarray, ...]  # (out,) per layer
     action_size: int
     metadata: dict[str, Any]
+    # A mirror-symmetric policy's reflections (`envs.symmetry.Mirror`): obs_perm, obs_sign,
+    # action_perm, action_sign; None for a plain policy.
+    mirror: dict[str, np.ndarray] | None = None
 
-    def __call__(self, observation: np.ndarray) -> np.ndarray:
-        """Action(s) in [−1, 1] for observation(s) (obs,) or (B, obs), NumPy only."""
-        x = (np.asarray(observation, dtype=np.float32) - self.mean) / self.std
+    def _mean(self, observation: np.ndarray) -> np.ndarray:
+        x = (observation - self.mean) / self.std
         for i, (w, b) in enumerate(zip(self.kernels, self.biases)):
             x = x @ w + b
             if i < len(self.kernels) - 1:
                 x = x / (1.0 + np.exp(-x))  # swish: x · sigmoid(x)
-        return np.tanh(x[..., : self.action_size])
+        return x[..., : self.action_size]
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        """Action(s) in [−1, 1] for observation(s) (obs,) or (B, obs), NumPy only."""
+        obs = np.asarray(observation, dtype=np.float32)
+        loc = self._mean(obs)
+        if self.mirror is not None:
+            m = self.mirror
+            image = self._mean(obs[..., m["obs_perm"]] * m["obs_sign"])
+            loc = 0.5 * (loc + image[..., m["action_perm"]] * m["action_sign"])
+        return np.tanh(loc)
 
 
 def _observation_mode(config) -> str | dict:
@@ -98,10 +112,19 @@ def policy_weights(path: Path | str, which: str = "best") -> PolicyWeights:
         "network": f"(obs - mean) / std -> dense {[int(np.shape(policy[n]['kernel'])[1]) for n in layers]} "
                    "with swish between layers -> tanh of the first action_size outputs",
     }
+    mirror = None
+    if getattr(config.agent, "mirror_symmetric", False):
+        from marinejax.envs.symmetry import env_mirror
+
+        m = env_mirror(env)
+        mirror = {"obs_perm": m.obs_perm.astype(np.int64), "obs_sign": m.obs_sign, "action_perm": m.action_perm.astype(np.int64),
+                  "action_sign": m.action_sign}
+        metadata["network"] += ("; mirror-symmetric: the mean averaged with action_sign * mean(observation[obs_perm] * "
+                                "obs_sign)[action_perm] before the tanh")
     to_np = lambda x: np.asarray(jax.device_get(x), np.float32)  # noqa: E731
     return PolicyWeights(mean=mean, std=std, kernels=tuple(to_np(policy[n]["kernel"]) for n in layers),
                          biases=tuple(to_np(policy[n]["bias"]) for n in layers), action_size=int(env.action_size),
-                         metadata=metadata)
+                         metadata=metadata, mirror=mirror)
 
 
 def save_npz(weights: PolicyWeights, out: Path) -> Path:
@@ -109,6 +132,8 @@ def save_npz(weights: PolicyWeights, out: Path) -> Path:
               "metadata": np.array(json.dumps(weights.metadata))}
     for i, (w, b) in enumerate(zip(weights.kernels, weights.biases)):
         arrays[f"kernel_{i}"], arrays[f"bias_{i}"] = w, b
+    for name, value in (weights.mirror or {}).items():
+        arrays[f"mirror_{name}"] = value
     with open(out, "wb") as f:  # a file object: np.savez would append .npz to another suffix
         np.savez(f, **arrays)
     return out
@@ -120,7 +145,8 @@ def load_numpy_policy(path: Path | str) -> PolicyWeights:
         n = sum(1 for k in data.files if k.startswith("kernel_"))
         return PolicyWeights(mean=data["mean"], std=data["std"], kernels=tuple(data[f"kernel_{i}"] for i in range(n)),
                              biases=tuple(data[f"bias_{i}"] for i in range(n)), action_size=int(data["action_size"]),
-                             metadata=json.loads(str(data["metadata"])))
+                             metadata=json.loads(str(data["metadata"])),
+                             mirror={k[len("mirror_"):]: data[k] for k in data.files if k.startswith("mirror_")} or None)
 
 
 def save_onnx(weights: PolicyWeights, out: Path) -> Path:
@@ -134,16 +160,36 @@ def save_onnx(weights: PolicyWeights, out: Path) -> Path:
             numpy_helper.from_array(np.array([0], np.int64), "start"),
             numpy_helper.from_array(np.array([weights.action_size], np.int64), "end"),
             numpy_helper.from_array(np.array([1], np.int64), "axis")]
-    nodes = [helper.make_node("Sub", ["observation", "mean"], ["centred"]), helper.make_node("Div", ["centred", "std"], ["x0"])]
-    x = "x0"
     for i, (w, b) in enumerate(zip(weights.kernels, weights.biases)):
         init += [numpy_helper.from_array(w, f"kernel_{i}"), numpy_helper.from_array(b, f"bias_{i}")]
-        nodes.append(helper.make_node("Gemm", [x, f"kernel_{i}", f"bias_{i}"], [f"dense_{i}"]))
-        x = f"dense_{i}"
-        if i < len(weights.kernels) - 1:
-            nodes += [helper.make_node("Sigmoid", [x], [f"sigmoid_{i}"]), helper.make_node("Mul", [x, f"sigmoid_{i}"], [f"swish_{i}"])]
-            x = f"swish_{i}"
-    nodes += [helper.make_node("Slice", [x, "start", "end", "axis"], ["loc"]), helper.make_node("Tanh", ["loc"], ["action"])]
+
+    def mean_of(observation: str, p: str) -> tuple[list, str]:
+        """Nodes computing the policy's mean (before the tanh) of input `observation`, names prefixed `p`."""
+        nodes = [helper.make_node("Sub", [observation, "mean"], [f"{p}centred"]), helper.make_node("Div", [f"{p}centred", "std"], [f"{p}x0"])]
+        x = f"{p}x0"
+        for i in range(len(weights.kernels)):
+            nodes.append(helper.make_node("Gemm", [x, f"kernel_{i}", f"bias_{i}"], [f"{p}dense_{i}"]))
+            x = f"{p}dense_{i}"
+            if i < len(weights.kernels) - 1:
+                nodes += [helper.make_node("Sigmoid", [x], [f"{p}sigmoid_{i}"]), helper.make_node("Mul", [x, f"{p}sigmoid_{i}"], [f"{p}swish_{i}"])]
+                x = f"{p}swish_{i}"
+        return nodes + [helper.make_node("Slice", [x, "start", "end", "axis"], [f"{p}loc"])], f"{p}loc"
+
+    nodes, loc = mean_of("observation", "")
+    if weights.mirror is not None:
+        init += [numpy_helper.from_array(np.asarray(v), f"mirror_{k}") for k, v in weights.mirror.items()]
+        init.append(numpy_helper.from_array(np.array(0.5, np.float32), "half"))
+        nodes += [helper.make_node("Gather", ["observation", "mirror_obs_perm"], ["reflected_raw"], axis=1),
+                  helper.make_node("Mul", ["reflected_raw", "mirror_obs_sign"], ["reflected"])]
+        image_nodes, image = mean_of("reflected", "image_")
+        nodes += image_nodes + [
+            helper.make_node("Gather", [image, "mirror_action_perm"], ["image_permuted"], axis=1),
+            helper.make_node("Mul", ["image_permuted", "mirror_action_sign"], ["image_reflected"]),
+            helper.make_node("Add", [loc, "image_reflected"], ["loc_sum"]),
+            helper.make_node("Mul", ["loc_sum", "half"], ["loc_symmetric"]),
+        ]
+        loc = "loc_symmetric"
+    nodes.append(helper.make_node("Tanh", [loc], ["action"]))
     obs_size = int(weights.mean.shape[0])
     graph = helper.make_graph(
         nodes, "marinejax_policy",

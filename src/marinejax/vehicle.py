@@ -147,6 +147,35 @@ class Vehicle:
         """What each component of the action means (units, signs, order), from the actuator kinds."""
         return "; then ".join(g.kind.describe(g.names, g.params) for g in self.sys.actuators)
 
+    def action_mirror(self) -> tuple[np.ndarray, np.ndarray]:
+        """(perm, sign): the mirror image of actuator commands `a` under the reflection y → −y of the
+        body frame is `sign * a[perm]`. Actuator i's image is the actuator of its kind at its reflected
+        site whose axis (site z: where a positive command pushes or lifts) is the reflected axis
+        (sign +1) or its opposite (−1). Exact for fins and propellers, except the propeller's torque
+        (a mirrored propeller turns the other way); a T200 mapped with sign −1 pushes less in reverse
+        than forward. Raises UserError naming an actuator without an image."""
+        m = self.mj_model
+        kinds = [g.kind.name for g in self.sys.actuators for _ in range(g.size)]
+        sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name) for name in self.actuator_names]
+        positions, axes = np.array([m.site_pos[i] for i in sites]), np.zeros((len(sites), 3))
+        for k, i in enumerate(sites):
+            mat = np.zeros(9)
+            mujoco.mju_quat2Mat(mat, m.site_quat[i])
+            axes[k] = mat.reshape(3, 3)[:, 2]
+        reflect = np.array([1.0, -1.0, 1.0])
+        perm, sign = np.zeros(len(sites), int), np.zeros(len(sites), np.float32)
+        for i in range(len(sites)):
+            for j in range(len(sites)):
+                if kinds[j] == kinds[i] and np.allclose(positions[j], reflect * positions[i], atol=1e-4):
+                    dot = float(axes[j] @ (reflect * axes[i]))
+                    if abs(abs(dot) - 1.0) < 1e-4:
+                        perm[i], sign[i] = j, np.sign(dot)
+                        break
+            else:
+                raise UserError(f"{self.name}: actuator {self.actuator_names[i]!r} has no mirror image (an actuator of kind "
+                                f"{kinds[i]!r} at its site reflected through the x-z plane, with the reflected axis)")
+        return perm, sign
+
 
 def _numerics(m: mujoco.MjModel, prefix: str) -> dict[str, np.ndarray]:
     out = {}

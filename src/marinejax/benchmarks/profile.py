@@ -145,7 +145,7 @@ def profile(env_name: str, agent_overrides: dict | None = None, env_overrides: d
     config = with_overrides(tuned_config(env_name, "ppo"), agent=agent_overrides or {}, env=env_overrides or {})
     agent, module = config.agent, config.module
     env = build_env(config)
-    parts = _parts(env, agent, module.network_factory(agent, env.observation_size))
+    parts = _parts(env, agent, module.env_network_factory(agent, env))
     steps_per_training_step = agent.batch_size * agent.num_minibatches * agent.unroll_length
     measured = _measured(env, agent, module, steps_per_training_step, sum(parts.values()))
     step = measured["training_step"]

@@ -3,7 +3,8 @@ deterministic policy. Every algorithm module (`ppo`, `sac`) has the same names:
 
   Config                     frozen dataclass of the algorithm's settings (num_timesteps, num_envs, seed, ...)
   NETWORK_CONFIG             file name of the network config inside a checkpoint directory
-  network_factory(config, observation_size)
+  network_factory(config, observation_size, mirror=None)
+  env_network_factory(config, env)  the same for an env (its observation size and mirror)
   run(env, config, **common) Brax's train function with our settings (`runner.train` passes `common`)
   save(path, step, params, env, config) / load(path)
   policy(config, env, params) deterministic policy fn observation → action in [−1, 1]
@@ -61,6 +62,10 @@ class Config:
     # updating its share of the envs in parallel (Brax's pmap; `runner.use_cpu_devices`). Part of
     # the recipe because the random streams, and so the results, depend on it. Ignored on GPU/TPU.
     cpu_devices: int = 1
+    # A mirror-equivariant policy (`envs.symmetry`): the action in the mirror image of a situation is
+    # the mirror image of the action, by construction (the network's output averaged with the
+    # reflected output for the reflected observation). Both turning directions are learned as one.
+    mirror_symmetric: bool = False
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
@@ -94,19 +99,57 @@ class Config:
         return cls(**{**data, "policy_hidden": tuple(data["policy_hidden"]), "value_hidden": tuple(data["value_hidden"])})
 
 
-def network_factory(config: Config, observation_size: int | Mapping | None = None) -> Callable:
+def network_factory(config: Config, observation_size: int | Mapping | None = None, mirror=None) -> Callable:
     """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
-    the policy reads "state" and the critic "privileged_state"."""
+    the policy reads "state" and the critic "privileged_state". With `mirror` (an
+    `envs.symmetry.Mirror`; needed when config.mirror_symmetric) the policy is mirror-equivariant
+    (`_mirrored`); its parameters are those of the plain network, which checkpoints describe."""
     from brax.training.agents.ppo import networks as ppo_networks
 
     keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
-    return functools.partial(
+    factory = functools.partial(
         ppo_networks.make_ppo_networks,
         policy_hidden_layer_sizes=tuple(config.policy_hidden),
         value_hidden_layer_sizes=tuple(config.value_hidden),
         init_noise_std=config.init_noise_std,
         **keys,
     )
+    if mirror is None:
+        return factory
+    return lambda *args, **kwargs: _mirrored(factory(*args, **kwargs), mirror)
+
+
+def _mirrored(networks, mirror):
+    """`networks` whose policy outputs ½ (f(o) + M_a f(M_o o)) for the plain network's output f and
+    the reflections M_o of the observation and M_a of the action (on the tanh-normal's location, its
+    scale permuted): the reflection of a situation gets the reflected action distribution."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    net = networks.policy_network
+    n = mirror.action_perm.size
+    out_perm = jnp.asarray(np.concatenate([mirror.action_perm, n + mirror.action_perm]))
+    out_sign = jnp.asarray(np.concatenate([mirror.action_sign, np.ones(n, np.float32)]))
+    obs_perm, obs_sign = jnp.asarray(mirror.obs_perm), jnp.asarray(mirror.obs_sign)
+
+    def reflect(obs):
+        if isinstance(obs, Mapping):  # the policy reads "state"
+            return {**obs, "state": reflect(obs["state"])}
+        return obs[..., obs_perm] * obs_sign
+
+    def apply(processor_params, policy_params, obs):
+        image = net.apply(processor_params, policy_params, reflect(obs))
+        return 0.5 * (net.apply(processor_params, policy_params, obs) + image[..., out_perm] * out_sign)
+
+    return dataclasses.replace(networks, policy_network=dataclasses.replace(net, apply=apply))
+
+
+def env_network_factory(config: Config, env) -> Callable:
+    """`network_factory` for env `env`: its observation size, and its `Mirror` where the policy is
+    mirror-symmetric."""
+    from marinejax.envs.symmetry import env_mirror
+
+    return network_factory(config, env.observation_size, env_mirror(env) if config.mirror_symmetric else None)
 
 
 def learning_rate_at(config: Config, env_steps):
@@ -176,7 +219,7 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         reward_scaling=config.reward_scaling,
         max_grad_norm=config.max_grad_norm,
         normalize_observations=config.normalize_observations,
-        network_factory=network_factory(config, env.observation_size),
+        network_factory=env_network_factory(config, env),
         num_evals=config.num_evals,
         num_eval_envs=config.num_eval_envs,
         deterministic_eval=True,
@@ -207,4 +250,4 @@ def policy(config: Config, env, params) -> Callable:
     """The deterministic policy (observation → action) of `params`."""
     from brax.training.agents.ppo import networks
 
-    return deterministic_policy(networks, network_factory(config, env.observation_size), env, params, config.normalize_observations)
+    return deterministic_policy(networks, env_network_factory(config, env), env, params, config.normalize_observations)
