@@ -23,6 +23,7 @@ from mujoco import mjx
 
 from marinejax.errors import MissingFileError, UserError
 from marinejax.actuators import ActuatorGroup, custom_text, declared_groups, load_actuators
+from marinejax.actuators.base import site_frames
 from marinejax.hydro.forces import added_mass_at_cg
 from marinejax.hydro.params import FIELDS as HYDRO_FIELDS, HydroParams
 from marinejax.model_files import models_dir
@@ -157,11 +158,8 @@ class Vehicle:
         m = self.mj_model
         kinds = [g.kind.name for g in self.sys.actuators for _ in range(g.size)]
         sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name) for name in self.actuator_names]
-        positions, axes = np.array([m.site_pos[i] for i in sites]), np.zeros((len(sites), 3))
-        for k, i in enumerate(sites):
-            mat = np.zeros(9)
-            mujoco.mju_quat2Mat(mat, m.site_quat[i])
-            axes[k] = mat.reshape(3, 3)[:, 2]
+        positions, rotations = site_frames(m, sites)
+        axes = rotations[:, :, 2]
         reflect = np.array([1.0, -1.0, 1.0])
         perm, sign = np.zeros(len(sites), int), np.zeros(len(sites), np.float32)
         for i in range(len(sites)):

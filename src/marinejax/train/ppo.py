@@ -130,12 +130,11 @@ def _mirrored(networks, mirror):
     n = mirror.action_perm.size
     out_perm = jnp.asarray(np.concatenate([mirror.action_perm, n + mirror.action_perm]))
     out_sign = jnp.asarray(np.concatenate([mirror.action_sign, np.ones(n, np.float32)]))
-    obs_perm, obs_sign = jnp.asarray(mirror.obs_perm), jnp.asarray(mirror.obs_sign)
 
     def reflect(obs):
         if isinstance(obs, Mapping):  # the policy reads "state"
-            return {**obs, "state": reflect(obs["state"])}
-        return obs[..., obs_perm] * obs_sign
+            return {**obs, "state": mirror.observation(obs["state"])}
+        return mirror.observation(obs)
 
     def apply(processor_params, policy_params, obs):
         image = net.apply(processor_params, policy_params, reflect(obs))
