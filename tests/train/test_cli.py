@@ -62,6 +62,12 @@ def test_train_writes_a_complete_run_directory(run_dir):
     records = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     assert [r["step"] for r in records] == sorted(r["step"] for r in records) and records[-1]["step"] >= 1600
     assert "eval/episode_position_error" in records[-1] and "eval/episode_window_error" in records[-1]
+    # the scheduled rate as it was at each evaluation, not the float Brax reports (the rate at the start)
+    from marinejax.train import ppo
+    rates = [(r["step"], r["training/learning_rate"]) for r in records if "training/learning_rate" in r]
+    schedule = ppo.Config.from_dict(config["ppo"])
+    assert rates and rates[-1][1] < 1e-3
+    assert [rate for _, rate in rates] == pytest.approx([float(ppo.learning_rate_at(schedule, step)) for step, _ in rates], rel=1e-6)
     best = json.loads((run_dir / "best.json").read_text())
     assert best["window_error"] == min(r["eval/episode_window_error"] for r in records if r["step"] > 0)
     checkpoints = sorted((run_dir / "checkpoints").iterdir())

@@ -1,4 +1,4 @@
-"""PPO's "linear" learning-rate schedule (`train/ppo.py`): its values, and that the rate Brax's PPO is
+"""PPO's "linear" learning-rate schedule and warmup (`train/ppo.py`): their values, and that the rate Brax's PPO is
 handed drives the optimizer Brax builds (gradient clipping, then Adam) update by update, resumed runs
 included. The CLI tests train and resume with it through Brax."""
 
@@ -26,6 +26,19 @@ def test_the_linear_schedule_holds_the_rate_then_falls_linearly_to_the_final_rat
     constant = ppo.Config(learning_rate=1e-3)
     assert float(ppo.learning_rate_at(constant, 10**9)) == pytest.approx(1e-3)
     assert ppo.brax_learning_rate(constant, 0) == 1e-3 and not callable(ppo.brax_learning_rate(constant, 0))
+
+
+def test_the_warmup_raises_the_rate_linearly_from_zero_then_hands_over_to_the_schedule():
+    warm = dataclasses.replace(CONFIG, warmup=0.25)  # 256,000 env steps
+    at = lambda steps: float(ppo.learning_rate_at(warm, steps))  # noqa: E731
+    np.testing.assert_allclose([at(0), at(64_000), at(128_000), at(256_000), at(512_000), at(768_000), at(1_024_000)],
+                               [0.0, 2.5e-4, 5e-4, 1e-3, 1e-3, 5.5e-4, 1e-4], rtol=1e-6, atol=1e-12)
+    constant = ppo.Config(num_timesteps=1_024_000, learning_rate=1e-3, warmup=0.5, batch_size=256, unroll_length=10,
+                          num_minibatches=4, num_updates_per_batch=4)
+    rate = ppo.brax_learning_rate(constant, 0)
+    assert callable(rate) and float(jnp.array(rate)) == 0.0
+    steps = adam_steps(rate, 1_600)
+    np.testing.assert_allclose(steps[[0, 400, 800, 1_599]], [0.0, 5e-4, 1e-3, 1e-3], rtol=1e-4, atol=1e-12)
 
 
 def adam_steps(rate, updates: int) -> np.ndarray:
@@ -58,6 +71,8 @@ def test_the_rate_handed_to_brax_drives_adam_update_by_update_and_a_resumed_run_
     ({"decay_start": 1.0}, "'decay_start' must be in [0, 1)"),
     ({"final_learning_rate": 2e-3}, "'final_learning_rate' must be between 0 and learning_rate (0.001), got 0.002"),
     ({"learning_rate_schedule": "cosine"}, "must be one of ['none', 'adaptive_kl', 'linear'], got 'cosine'"),
+    ({"warmup": 1.0}, "'warmup' must be in [0, 1) (a fraction of num_timesteps), got 1.0"),
+    ({"warmup": 0.1, "learning_rate_schedule": "adaptive_kl"}, "'warmup' works with learning_rate_schedule 'none' or 'linear'"),
 ])
 def test_bad_schedule_settings_name_the_value_and_the_valid_range(overrides, message):
     with pytest.raises(UserError) as err:

@@ -26,6 +26,8 @@ NETWORK_CONFIG = "ppo_network_config.json"
 # `desired_kl` and multiplied by 1.5 where it fell under half of it, within 1e-5–1e-2; the schedule
 # of rsl_rl's legged-robot PPO); and ours, "linear": `learning_rate` until `decay_start` of the run's
 # env steps, then falling linearly to `final_learning_rate` at `num_timesteps` (`learning_rate_at`).
+# With "none" and "linear", `warmup` > 0 raises the rate linearly from 0 over that fraction of the run
+# first (the rate is the schedule's times min(1, steps / (warmup × num_timesteps))).
 LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl", "linear")
 
 
@@ -45,6 +47,7 @@ class Config:
     desired_kl: float = 0.01  # the KL divergence "adaptive_kl" aims at, per update
     decay_start: float = 0.5  # "linear": the fraction of num_timesteps after which the rate falls
     final_learning_rate: float = 0.0  # "linear": the rate at num_timesteps
+    warmup: float = 0.0  # "none" and "linear": the fraction of num_timesteps over which the rate rises from 0
     entropy_cost: float = 1e-3
     discounting: float = 0.97
     gae_lambda: float = 0.95
@@ -88,6 +91,10 @@ class Config:
         if not 0 <= self.final_learning_rate <= self.learning_rate:
             raise UserError(f"ppo 'final_learning_rate' must be between 0 and learning_rate ({self.learning_rate}), "
                             f"got {self.final_learning_rate}")
+        if not 0 <= self.warmup < 1:
+            raise UserError(f"ppo 'warmup' must be in [0, 1) (a fraction of num_timesteps), got {self.warmup}")
+        if self.warmup and self.learning_rate_schedule == "adaptive_kl":
+            raise UserError("ppo 'warmup' works with learning_rate_schedule 'none' or 'linear', not 'adaptive_kl'")
         if not self.desired_kl > 0:
             raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
         if not (self.discounting < 1 and self.gae_lambda <= 1):
@@ -153,14 +160,17 @@ def env_network_factory(config: Config, env) -> Callable:
 
 def learning_rate_at(config: Config, env_steps):
     """The learning rate after `env_steps` env steps of a run (counted across resumes) for the
-    "linear" schedule; otherwise `learning_rate` ("adaptive_kl": its initial rate)."""
+    "linear" schedule and a warmup; otherwise `learning_rate` ("adaptive_kl": its initial rate)."""
     import jax.numpy as jnp
 
-    if config.learning_rate_schedule != "linear":
-        return jnp.asarray(config.learning_rate)
-    start = config.decay_start * config.num_timesteps
-    fraction = jnp.clip((env_steps - start) / (config.num_timesteps - start), 0.0, 1.0)
-    return config.learning_rate + fraction * (config.final_learning_rate - config.learning_rate)
+    rate = jnp.asarray(config.learning_rate)
+    if config.learning_rate_schedule == "linear":
+        start = config.decay_start * config.num_timesteps
+        fraction = jnp.clip((env_steps - start) / (config.num_timesteps - start), 0.0, 1.0)
+        rate = config.learning_rate + fraction * (config.final_learning_rate - config.learning_rate)
+    if config.warmup:
+        rate = rate * jnp.clip(env_steps / (config.warmup * config.num_timesteps), 0.0, 1.0)
+    return rate
 
 
 class _ScheduledRate(float):
@@ -181,7 +191,7 @@ class _ScheduledRate(float):
 def brax_learning_rate(config: Config, steps_done: int = 0) -> float:
     """The `learning_rate` to give `brax.training.agents.ppo.train` for a call that starts after
     `steps_done` env steps of the run: the float, or the schedule (`learning_rate_at`)."""
-    if config.learning_rate_schedule != "linear":
+    if config.learning_rate_schedule != "linear" and not config.warmup:
         return config.learning_rate
     # one training step: num_updates_per_batch × num_minibatches optimizer updates on
     # batch_size × unroll_length × num_minibatches env steps (Brax's `env_step_per_training_step`)
@@ -198,6 +208,14 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
 
     # a resumed run continues its schedule where it stopped (Brax starts a new optimizer state)
     steps_done = config.num_timesteps - num_timesteps
+    rate = brax_learning_rate(config, steps_done)
+
+    def progress(step, metrics):
+        # Brax reports the float of a scheduled rate (its start); report the rate at this step
+        if callable(rate) and "training/learning_rate" in metrics:
+            metrics = {**metrics, "training/learning_rate": float(learning_rate_at(config, steps_done + step))}
+        progress_fn(step, metrics)
+
     ppo_train.train(
         environment=env,
         num_timesteps=num_timesteps,
@@ -208,7 +226,7 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         batch_size=config.batch_size,
         num_minibatches=config.num_minibatches,
         num_updates_per_batch=config.num_updates_per_batch,
-        learning_rate=brax_learning_rate(config, steps_done),
+        learning_rate=rate,
         learning_rate_schedule="ADAPTIVE_KL" if config.learning_rate_schedule == "adaptive_kl" else "NONE",
         desired_kl=config.desired_kl,
         entropy_cost=config.entropy_cost,
@@ -224,7 +242,7 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         deterministic_eval=True,
         seed=seed,
         restore_checkpoint_path=str(restore) if restore else None,
-        progress_fn=progress_fn,
+        progress_fn=progress,
         policy_params_fn=lambda step, make_policy, params: save_fn(step, params) if step > 0 else None,
         max_devices_per_host=devices,
     )
