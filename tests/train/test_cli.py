@@ -272,9 +272,8 @@ def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_
 @pytest.mark.slow
 def test_bench_training_profile_splits_a_training_step_into_parts_that_sum_to_the_measured_step(tmp_path):
     tiny = [a for a in TINY if a not in ("--episodes", "4")]  # 1600 env steps, 3 evaluations
-    # on two CPU devices: the parts and the step on one, then the step on both
-    proc = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--out-dir", str(tmp_path), *tiny,
-                     "--ppo", "cpu_devices=2")
+    # on one device (tests/train/test_profile.py: a recipe's several CPU devices, with the timings replaced)
+    proc = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--out-dir", str(tmp_path), *tiny)
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads((tmp_path / "profile-BlueROV2Heavy-StationKeeping.json").read_text())
     parts, shares = result["parts_s"], result["shares"]
@@ -285,13 +284,12 @@ def test_bench_training_profile_splits_a_training_step_into_parts_that_sum_to_th
     assert result["env_steps_per_training_step"] == 8 * 2 * 5  # batch_size x num_minibatches x unroll_length
     assert result["training_env_steps_per_s"] == pytest.approx(80 / result["training_step_s"])
     recipe = result["recipe_s"]
-    assert result["cpu_devices"] == 2 and result["training_step_on_cpu_devices_s"] > 0
-    assert result["cpu_devices_speedup"] == pytest.approx(result["training_step_s"] / result["training_step_on_cpu_devices_s"])
-    assert recipe["training"] == pytest.approx(math.ceil(1600 / 80) * result["training_step_on_cpu_devices_s"])
+    assert result["cpu_devices"] == 1 and result["training_step_on_cpu_devices_s"] == result["training_step_s"]
+    assert recipe["training"] == pytest.approx(math.ceil(1600 / 80) * result["training_step_s"])
     assert recipe["compilation"] > 0
     assert sum(result["recipe_shares"].values()) == pytest.approx(1.0)
     assert "PPO loss and gradient" in proc.stdout and "training step, measured in ppo.train" in proc.stdout
-    assert "the recipe's 2 CPU devices: training step" in proc.stdout
+    assert "CPU devices: training step" not in proc.stdout and "1 device(s)), projected" in proc.stdout
     refused = marinejax("bench", "training", "BlueROV2Heavy-StationKeeping", "--profile", "--algo", "sac", timeout=120)
     assert refused.returncode == 2 and "--profile profiles PPO" in refused.stderr
 

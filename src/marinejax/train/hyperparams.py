@@ -59,7 +59,7 @@ class TrainConfig:
 # about 1.5 M steps and keeps 4 M.
 _STATION = PPOConfig(
     num_timesteps=12_000_000, num_minibatches=4, unroll_length=10, learning_rate=1e-3, entropy_cost=1e-4,
-    discounting=0.98, init_noise_std=0.5, num_evals=20,
+    discounting=0.98, num_evals=20,
 )
 # SAC, the same for every task: 0.5 M env steps (about 4 minutes on the 2-core CPU). On station
 # keeping seed 0 reached 5 mm after 0.23 M steps (docs/results.md: seeds 0-4).

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -29,6 +30,7 @@ NETWORK_CONFIG = "ppo_network_config.json"
 # With "none" and "linear", `warmup` > 0 raises the rate linearly from 0 over that fraction of the run
 # first (the rate is the schedule's times min(1, steps / (warmup × num_timesteps))).
 LEARNING_RATE_SCHEDULES = ("none", "adaptive_kl", "linear")
+_MIN_STD = 0.001  # Brax's NormalTanhDistribution: std = softplus(x) + min_std
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,7 +57,16 @@ class Config:
     reward_scaling: float = 1.0
     max_grad_norm: float = 1.0
     normalize_observations: bool = True
-    init_noise_std: float = 1.0  # initial exploration noise of the policy (pre-tanh std)
+    # The exploration noise. Brax's policy is a tanh-normal whose std (before the tanh) is an output
+    # of the policy network, softplus(x) + 0.001 (about 0.69 at initialisation), and ignores Brax's own
+    # init_noise_std. `init_noise_std` > 0 shifts x so that the std at x = 0 is that value;
+    # `max_noise_std` > 0 bounds it smoothly (x is replaced by min(x, c) smoothed, c where the std is
+    # that value): in the torpedo's path-following runs it grew to 2-14 within 0.5 M steps, highest
+    # on the seeds that failed; bounded, fewer lemniscate seeds failed, not fewer helix seeds
+    # (docs/results.md). 0: Brax's network unchanged. Both act on the stochastic training policy
+    # only: the deterministic policy (tanh of the location), evaluation and export do not change.
+    init_noise_std: float = 0.0
+    max_noise_std: float = 0.0
     policy_hidden: tuple[int, ...] = dataclasses.field(default=(64, 64), metadata={"variable_length": True})
     value_hidden: tuple[int, ...] = dataclasses.field(default=(64, 64), metadata={"variable_length": True})
     num_evals: int = 20
@@ -97,12 +108,22 @@ class Config:
             raise UserError("ppo 'warmup' works with learning_rate_schedule 'none' or 'linear', not 'adaptive_kl'")
         if not self.desired_kl > 0:
             raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
+        for name in ("init_noise_std", "max_noise_std"):
+            value = getattr(self, name)
+            if not (value == 0 or (math.isfinite(value) and value > _MIN_STD)):
+                raise UserError(f"ppo '{name}' must be 0 (Brax's network unchanged) or a std > {_MIN_STD}, got {value}")
+        if self.max_noise_std and self.init_noise_std >= self.max_noise_std:
+            raise UserError(f"ppo 'init_noise_std' ({self.init_noise_std}) must be below 'max_noise_std' ({self.max_noise_std})")
         if not (self.discounting < 1 and self.gae_lambda <= 1):
             raise UserError(f"ppo 'discounting' must be < 1 and 'gae_lambda' <= 1, got {self.discounting}, {self.gae_lambda}")
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> "Config":
-        """The config as config.json records it (lists for the tuples)."""
+        """The config as config.json records it (lists for the tuples). A config written before
+        `max_noise_std` existed recorded an `init_noise_std` that Brax ignored: it is dropped."""
+        data = dict(data)
+        if "max_noise_std" not in data:
+            data.pop("init_noise_std", None)
         return cls(**{**data, "policy_hidden": tuple(data["policy_hidden"]), "value_hidden": tuple(data["value_hidden"])})
 
 
@@ -110,20 +131,56 @@ def network_factory(config: Config, observation_size: int | Mapping | None = Non
     """Brax's PPO networks with our sizes; for a dict observation size (`privileged_observation`)
     the policy reads "state" and the critic "privileged_state". With `mirror` (an
     `envs.symmetry.Mirror`; needed when config.mirror_symmetric) the policy is mirror-equivariant
-    (`_mirrored`); its parameters are those of the plain network, which checkpoints describe."""
+    (`_mirrored`); `init_noise_std` and `max_noise_std` transform its std (`_noise_std`). The
+    parameters are those of the plain network, which checkpoints describe (`_brax_factory`)."""
+    factory = _brax_factory(config, observation_size)
+    if mirror is None and not (config.init_noise_std or config.max_noise_std):
+        return factory
+
+    def make(*args, **kwargs):
+        networks = factory(*args, **kwargs)
+        if mirror is not None:
+            networks = _mirrored(networks, mirror)
+        return _noise_std(networks, config.init_noise_std, config.max_noise_std)
+
+    return make
+
+
+def _brax_factory(config: Config, observation_size: int | Mapping | None) -> Callable:
+    """Brax's plain PPO networks (a partial of `make_ppo_networks`, as its checkpoints record it)."""
     from brax.training.agents.ppo import networks as ppo_networks
 
     keys = {"policy_obs_key": "state", "value_obs_key": "privileged_state"} if isinstance(observation_size, Mapping) else {}
-    factory = functools.partial(
-        ppo_networks.make_ppo_networks,
-        policy_hidden_layer_sizes=tuple(config.policy_hidden),
-        value_hidden_layer_sizes=tuple(config.value_hidden),
-        init_noise_std=config.init_noise_std,
-        **keys,
-    )
-    if mirror is None:
-        return factory
-    return lambda *args, **kwargs: _mirrored(factory(*args, **kwargs), mirror)
+    return functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=tuple(config.policy_hidden),
+                             value_hidden_layer_sizes=tuple(config.value_hidden), **keys)
+
+
+def _softplus_inverse(y: float) -> float:
+    return math.log(math.expm1(y))
+
+
+def _noise_std(networks, init_std: float, max_std: float):
+    """`networks` whose policy's std output x (the second half: std = softplus(x) + 0.001) is shifted
+    so that x = 0 gives `init_std`, then smoothly bounded, c − softplus(c − x), so that the std stays
+    under `max_std`; the location (first half) is untouched. 0 leaves that step out."""
+    import jax
+    import jax.numpy as jnp
+
+    if not (init_std or max_std):
+        return networks
+    shift = _softplus_inverse(init_std - _MIN_STD) if init_std else 0.0
+    bound = _softplus_inverse(max_std - _MIN_STD) if max_std else None
+    net = networks.policy_network
+
+    def apply(processor_params, policy_params, obs):
+        out = net.apply(processor_params, policy_params, obs)
+        n = out.shape[-1] // 2
+        x = out[..., n:] + shift
+        if bound is not None:
+            x = bound - jax.nn.softplus(bound - x)  # = x − softplus(x − c), without x's rounding at large x
+        return jnp.concatenate([out[..., :n], x], axis=-1)
+
+    return dataclasses.replace(networks, policy_network=dataclasses.replace(net, apply=apply))
 
 
 def _mirrored(networks, mirror):
@@ -252,7 +309,7 @@ def save(path: Path, step: int, params, env, config: Config) -> None:
     """A Brax PPO checkpoint `path/<step:012d>` (normalizer, policy, value params + network config)."""
     from brax.training.agents.ppo import checkpoint
 
-    save_checkpoint(checkpoint, network_factory(config, env.observation_size), path, step, params, env, config.normalize_observations,
+    save_checkpoint(checkpoint, _brax_factory(config, env.observation_size), path, step, params, env, config.normalize_observations,
                     NETWORK_CONFIG)
 
 
