@@ -63,6 +63,12 @@ class Config:
     # before the policy update, whose importance ratios then compare two different policies (its
     # logged KL 0.7-1.7 over the first 0.5 M steps of the torpedo's path runs, 0.01-0.02 after).
     normalizer_warmup: int = 0
+    # A run directory, a checkpoint inside one, or the env name of a shipped policy (e.g.
+    # "Remus100-CircleFollowing") whose best checkpoint starts this run: its observation normalizer,
+    # policy and value networks; the optimizer and the step count start anew (a curriculum: the torpedo's
+    # helix and lemniscate start from its circle policy). Its observations and actions must have this
+    # env's sizes and mean the same, and its networks this config's sizes and symmetry. "": from scratch.
+    init_from: str = ""
     # The exploration noise. Brax's policy is a tanh-normal whose std (before the tanh) is an output
     # of the policy network, softplus(x) + 0.001 (about 0.69 at initialisation), and ignores Brax's own
     # init_noise_std. `init_noise_std` > 0 shifts x so that the std at x = 0 is that value;
@@ -116,6 +122,10 @@ class Config:
             raise UserError(f"ppo 'normalizer_warmup' must be >= 0 (steps), got {self.normalizer_warmup}")
         if self.normalizer_warmup and not self.normalize_observations:
             raise UserError("ppo 'normalizer_warmup' needs normalize_observations = true")
+        if not isinstance(self.init_from, str):
+            raise UserError(f"ppo 'init_from' must be a run directory, a checkpoint or a shipped policy's env name, got {self.init_from!r}")
+        if self.init_from and self.normalizer_warmup:
+            raise UserError("ppo 'init_from' and 'normalizer_warmup' exclude each other (the run starts from its checkpoint's normalizer)")
         if not self.desired_kl > 0:
             raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
         for name in ("init_noise_std", "max_noise_std"):
@@ -309,7 +319,7 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
         deterministic_eval=True,
         seed=seed,
         restore_checkpoint_path=str(restore) if restore else None,
-        restore_params=initial_params(env, config, seed) if config.normalizer_warmup and restore is None else None,
+        restore_params=initial_params(env, config, seed) if restore is None else None,
         progress_fn=progress,
         policy_params_fn=lambda step, make_policy, params: save_fn(step, params) if step > 0 else None,
         max_devices_per_host=devices,
@@ -348,16 +358,40 @@ def warmup_normalizer(env, config: Config, seed: int):
 
 
 def initial_params(env, config: Config, seed: int):
-    """(normalizer, policy, value) to start Brax's PPO from: its own initial networks for `seed` (the
-    keys its `train` derives) with the normalizer of `warmup_normalizer`."""
+    """(normalizer, policy, value) to start Brax's PPO from, or None for Brax's own start: the
+    checkpoint of `config.init_from` (`from_checkpoint`), or Brax's own initial networks for `seed`
+    (the keys its `train` derives) with the normalizer of `warmup_normalizer`."""
     import jax
     from brax.training.acme import running_statistics
 
+    if config.init_from:
+        return from_checkpoint(env, config)
+    if not config.normalizer_warmup:
+        return None
     normalizer = warmup_normalizer(env, config, seed)
     key_policy, key_value = jax.random.split(jax.random.split(jax.random.PRNGKey(seed))[0])
     shapes = jax.tree_util.tree_map(lambda x: x.shape, normalizer.mean)
     networks = env_network_factory(config, env)(shapes, env.action_size, preprocess_observations_fn=running_statistics.normalize)
     return normalizer, networks.policy_network.init(key_policy), networks.value_network.init(key_value)
+
+
+def from_checkpoint(env, config: Config):
+    """The params (normalizer, policy, value) of `config.init_from`'s best checkpoint, checked against
+    `env` and `config`: a PPO run with the same observation and action sizes, network sizes and
+    mirror symmetry (UserError naming the difference)."""
+    from marinejax.train.checkpoints import load_params  # the checkpoint layer reads the algorithms' configs
+
+    source, source_env, params, ckpt = load_params(config.init_from)
+    if source.algorithm != "ppo":
+        raise UserError(f"ppo 'init_from' {config.init_from!r} is a {source.algorithm.upper()} run; a PPO run starts from a PPO checkpoint")
+    mine = (env.observation_size, env.action_size, tuple(config.policy_hidden), tuple(config.value_hidden), config.mirror_symmetric)
+    theirs = (source_env.observation_size, source_env.action_size, tuple(source.agent.policy_hidden),
+              tuple(source.agent.value_hidden), source.agent.mirror_symmetric)
+    names = ("observation size", "action size", "policy_hidden", "value_hidden", "mirror_symmetric")
+    for name, a, b in zip(names, mine, theirs):
+        if a != b:
+            raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) has {name} {b}, this run {a}")
+    return params
 
 
 def save(path: Path, step: int, params, env, config: Config) -> None:
