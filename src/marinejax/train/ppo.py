@@ -390,7 +390,8 @@ def from_checkpoint(env, config: Config):
     names = ("observation size", "action size", "policy_hidden", "value_hidden", "mirror_symmetric")
     for name, a, b in zip(names, mine, theirs):
         if a != b:
-            raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) has {name} {b}, this run {a}")
+            raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) has {name} {b}, this run {a} "
+                            "(--ppo init_from= trains from scratch)")
     return params
 
 
