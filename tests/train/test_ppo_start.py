@@ -83,6 +83,18 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
     assert calls[-1]["restore_params"] is None and calls[-1]["restore_checkpoint_path"] == str(tmp_path / "checkpoint")
 
 
+def test_every_recipe_that_starts_from_a_policy_fits_it():
+    # the REMUS's curved paths and waypoints start from its circle policy; the four-fin variant (another
+    # action size) and the disturbed paths train from scratch
+    from marinejax.train.hyperparams import tuned_config
+
+    starting = {name: tuned_config(name).ppo for name in mj.list_envs() if tuned_config(name).ppo.init_from}
+    assert set(starting) == {"Remus100-HelixFollowing", "Remus100-LemniscateFollowing", "Remus100-WaypointFollowing"}
+    for name, config in starting.items():
+        params = ppo.initial_params(mj.make(name, **tuned_config(name).env_overrides), config, seed=0)
+        assert len(params) == 3, name
+
+
 @pytest.mark.parametrize("env_name, settings, message", [
     ("Remus100-HelixFollowing", {"mirror_symmetric": False}, "has mirror_symmetric True, this run False"),
     ("Remus100-HelixFollowing", {"mirror_symmetric": True, "policy_hidden": (32, 32)}, "has policy_hidden (64, 64), this run (32, 32)"),

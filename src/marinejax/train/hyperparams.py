@@ -81,6 +81,7 @@ _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 # circle, seed 0 was at 0.04 m after 3.2 M steps and at best 0.034 m (with the cross-track integral
 # observed; without it, 0.50 m at 6.3 M steps). docs/results.md: seeds 0-4.
 _PATH = dataclasses.replace(_STATION, num_timesteps=8_000_000, num_evals=16)
+_TUNED["WaypointFollowing"] = (_PATH, {})
 # The circle: a mirror-symmetric policy on two CPU devices. The plain policy sometimes learned to turn
 # one way only (a seed's clockwise circles 0.48 m, its counter-clockwise ones 0.03 m); symmetric,
 # every seed 0-4 within 0.044 m in 126-192 s of training (one device, plain: 235-346 s), one seed
@@ -93,13 +94,7 @@ _TUNED["CircleFollowing"] = (_CIRCLE, {})
 # 0.10 m on each path (the path recipe: 3 of 5), every seed holding the commanded speed (within
 # 45 mm/s; the path recipe left one lemniscate seed 0.96 m/s off) (docs/results.md).
 _CURVED = (dataclasses.replace(_PATH, num_envs=512, batch_size=512), {"integral_time_constant": 10.0})
-# From scratch that left a seed in five of each path at 0.19-0.39 m, and no change of exploration,
-# normalizer, reward or integral landed them all; waypoints landed every seed from scratch (the path
-# recipe) but in 342-361 s. A curriculum lands all three in 85-142 s: the shipped circle policy
-# (`policies/Remus100-CircleFollowing`, the circle's recipe, seed 0) fine-tuned on the path with the
-# circle's settings for 4 M steps (docs/results.md: seeds 0-4).
-_FROM_CIRCLE = (dataclasses.replace(_CIRCLE, num_timesteps=4_000_000, init_from="Remus100-CircleFollowing"), {})
-_TUNED.update({"HelixFollowing": _FROM_CIRCLE, "LemniscateFollowing": _FROM_CIRCLE, "WaypointFollowing": _FROM_CIRCLE})
+_TUNED.update({"HelixFollowing": _CURVED, "LemniscateFollowing": _CURVED})
 # The torpedo autopilot (120 s episodes of two set-points): a 10 s horizon (γ 0.99 at 10 Hz) and
 # 20 M steps; the seeds reach 0.1 m of depth error after 9.5-17 M steps (one never did: docs/results.md,
 # seeds 0-4).
@@ -110,8 +105,6 @@ _TUNED["ObstacleAvoidance"] = (dataclasses.replace(_STATION, num_timesteps=10_00
 _TUNED.update({f"{task}Fast": _TUNED[task] for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.items())})
 _TUNED["CircleFollowingDisturbed"] = (_PATH, {})  # its results were measured with the path recipe
-_TUNED.update({"WaypointFollowingDisturbed": (_PATH, {}), "HelixFollowingDisturbed": _CURVED,
-               "LemniscateFollowingDisturbed": _CURVED})  # and these with theirs
 # Under disturbance the latest checkpoint was already within 1.3× of the best on every seed with the
 # constant rate, the recipe its results were measured with (docs/results.md).
 _TUNED["StationKeepingDisturbed"] = (_STATION, {})
@@ -130,6 +123,14 @@ _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
         {**_BLUEROV2_POSE, "reward.smoothness": 0.1, "reward.angular_velocity": 0.1},
     ),
 }
+# The REMUS 100's helix, lemniscate and waypoints (not the four-fin variant's: another action size).
+# From scratch the curved paths left a seed in five at 0.19-0.39 m, and no change of exploration,
+# normalizer, reward or integral landed them all; waypoints landed every seed from scratch (the path
+# recipe) but in 342-361 s. A curriculum lands all three in 85-142 s: the shipped circle policy
+# (`policies/Remus100-CircleFollowing`, the circle's recipe, seed 0) fine-tuned on the path with the
+# circle's settings for 4 M steps (docs/results.md: seeds 0-4). The disturbed paths keep their task's.
+_FROM_CIRCLE = (dataclasses.replace(_CIRCLE, num_timesteps=4_000_000, init_from="Remus100-CircleFollowing"), {})
+_TUNED_ENVS.update({f"Remus100-{task}": _FROM_CIRCLE for task in ("HelixFollowing", "LemniscateFollowing", "WaypointFollowing")})
 # Torpedo docking (the same task name as the ROVs' docking, another class): a straight path ending in
 # the funnel, so the path recipe (docs/results.md: seeds 0-4).
 _TUNED_ENVS.update({f"{v}-Docking{d}": (_PATH, {}) for v in ("Remus100", "Remus100FourFin") for d in ("", "Disturbed")})
