@@ -65,8 +65,8 @@ class Config:
     normalizer_warmup: int = 0
     # A run directory, a checkpoint inside one, or the env name of a shipped policy (e.g.
     # "Remus100-CircleFollowing") whose best checkpoint starts this run: its observation normalizer,
-    # policy and value networks; the optimizer and the step count start anew (a curriculum: the torpedo's
-    # helix and lemniscate start from its circle policy). Its observations and actions must have this
+    # policy and value networks; the optimizer and the step count start anew (a curriculum: the REMUS
+    # 100's helix, lemniscate and waypoints start from its circle policy). Its observations and actions must have this
     # env's sizes and mean the same, and its networks this config's sizes and symmetry. "": from scratch.
     init_from: str = ""
     # The exploration noise. Brax's policy is a tanh-normal whose std (before the tanh) is an output
