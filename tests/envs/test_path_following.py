@@ -9,6 +9,7 @@ import pytest
 import marinejax as mj
 from marinejax.envs import paths
 from marinejax.errors import UserError
+from marinejax.frames import quat_to_mat
 
 
 def _dense(kind, path, s_max, step=0.01):
@@ -126,3 +127,129 @@ def test_path_following_is_for_torpedoes_and_bad_settings_are_refused():
         mj.make("Remus100-CircleFollowing", settle_time=-1.0)
     with pytest.raises(UserError, match="config 'start_offset' must be finite and >= 0, got -0.5"):
         mj.make("Remus100-CircleFollowing", start_offset=-0.5)
+
+
+def _ground_radius(vehicle, sys, rpm, current, seconds=400.0, dt=0.1):
+    """Full-rudder turn of `vehicle` simulated with `sys` at propeller speed `rpm` in a uniform
+    current (3,) m/s: (the widest radius of curvature of the ground track in plan view over the last
+    revolution, where the current carries it along: the tightest circle over the ground it can
+    follow all the way round, m; the mean speed through the water there, m/s)."""
+    from marinejax.physics import initial_state, rollout
+
+    steps = int(seconds / dt)
+    commands = np.tile(np.array([1.0, 0.0, 2.0 * rpm / 1525.0 - 1.0], np.float32), (steps, 1))  # [0, 1525] rpm ↔ [−1, 1]
+    start = initial_state(vehicle, velocity=(rpm / 1525.0 * 2.554, 0.0, 0.0), actuators=(0.0, 0.0, rpm))
+    traj = rollout(vehicle, commands, start, control_dt=dt, substeps=2, sys=sys, current=current)
+    last = slice(steps // 5, None)  # the steady turn: more than a revolution (at 0.5 m/s one takes 5 minutes)
+    rot = np.asarray(jax.vmap(quat_to_mat)(traj.quaternion))[last]
+    ground = np.einsum("tij,tj->ti", rot, np.asarray(traj.velocity)[last])  # world, over the ground
+    water = ground - np.asarray(current)
+    accel = np.gradient(ground[:, :2], dt, axis=0)
+    curvature = np.abs(ground[:, 0] * accel[:, 1] - ground[:, 1] * accel[:, 0]) / np.linalg.norm(ground[:, :2], axis=1) ** 3
+    return 1.0 / curvature.min(), float(np.linalg.norm(water, axis=1).mean())
+
+
+def test_a_disturbed_path_is_one_the_weakest_fins_can_turn_downstream_in_the_episodes_current():
+    """The fitted path's tightest radius (the drawn 25 m × `turn_scale`) is at least what the REMUS
+    100 flies at full rudder with the randomization's weakest fins, carried by the current at the
+    commanded ground speed: the turn the path asks is one the vehicle can make."""
+    env = mj.make("Remus100-CircleFollowingDisturbed")
+    vehicle = env.vehicle
+    f_min = env.config.randomization.fin_lift_scale[0]
+    weak = vehicle.sys.replace(actuators=tuple(
+        g.replace(params=g.params.replace(lift_scale=g.params.lift_scale * f_min)) if g.kind.name == "fin" else g
+        for g in vehicle.sys.actuators))
+    full, full_speed = _ground_radius(vehicle, vehicle.sys, 1525.0, np.zeros(3))
+    slow, slow_speed = _ground_radius(vehicle, vehicle.sys, 500.0, np.zeros(3))
+    weak_radius, _ = _ground_radius(vehicle, weak, 500.0, np.zeros(3))
+    # the reference's turning circle at full speed (37 m across); slower, a wider one, at most as
+    # 1/U (the bound `turn_scale` rests on); weaker fins widen it, at most as 1/f
+    assert full == pytest.approx(36.92 / 2, rel=0.01) and slow_speed < 0.4 * full_speed
+    assert 1.2 * full < slow <= full * full_speed / slow_speed and slow < weak_radius <= slow / f_min
+    for speed, drift in ((1.0, 0.3), (1.0, 0.5), (1.5, 0.5)):
+        # the propeller speed that gives the water speed V − c in the steady turn (about linear)
+        rpm = 500.0
+        for _ in range(2):
+            _, water = _ground_radius(vehicle, weak, rpm, np.zeros(3))
+            rpm *= (speed - drift) / water
+        flown, water = _ground_radius(vehicle, weak, rpm, np.array([drift, 0.0, 0.0]))
+        assert water == pytest.approx(speed - drift, rel=0.02)
+        mean = jnp.array([drift - env.config.current.ou_sigma * 2 * 2**0.5, 0.0, 0.0])  # the margin's share
+        asked = paths.PathConfig().radius[0] * float(env.turn_scale(jnp.asarray(speed), mean))
+        # without the fit, the 25 m circle is tighter than the vehicle can fly downstream
+        assert flown > paths.PathConfig().radius[0] * 1.5 and asked >= flown, (speed, drift, flown, asked)
+
+
+@pytest.mark.parametrize("kind", paths.KINDS)
+def test_a_turn_scale_widens_every_turn_and_keeps_the_start(kind):
+    config = paths.PathConfig()
+    key = jax.random.PRNGKey(7)
+    drawn, wide = paths.sample(kind, key, config), paths.sample(kind, key, config, jnp.asarray(2.5))
+    radius = lambda p: p.radius if kind == "lines" else p.size  # noqa: E731
+    np.testing.assert_allclose(float(radius(wide)), 2.5 * float(radius(drawn)), rtol=1e-6)
+    for a, b in zip(paths.point(kind, drawn, jnp.zeros(())), paths.point(kind, wide, jnp.zeros(()))):
+        np.testing.assert_allclose(np.asarray(b), np.asarray(a), atol=1e-4)  # start point and direction
+    if kind == "lines":  # the legs keep their lengths: only the arcs between them grow
+        np.testing.assert_allclose(np.diff(np.asarray(wide.start_s))[::2], np.diff(np.asarray(drawn.start_s))[::2], rtol=1e-5)
+    # no scale: exactly the drawn path
+    for a, b in zip(jax.tree.leaves(drawn), jax.tree.leaves(paths.sample(kind, key, config, 1.0))):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_the_disturbed_task_fits_its_path_to_the_episodes_current_and_the_nominal_keeps_it():
+    disturbed, nominal = mj.make("Remus100-CircleFollowingDisturbed"), mj.make("Remus100-CircleFollowing")
+    keys = jax.random.split(jax.random.PRNGKey(2), 16)
+    c = disturbed.config
+    for env in (disturbed, nominal):
+        states = jax.vmap(env.reset)(keys)
+        task = states.info["task"]
+        drawn = jax.vmap(lambda k: paths.sample("circle", jax.random.split(jax.random.split(k, 6)[1])[0], c.path))(keys)
+        speed, mean = np.asarray(task.speed, np.float64), np.asarray(states.pipeline_state.current.mean, np.float64)
+        if env is nominal:
+            np.testing.assert_array_equal(np.asarray(task.path.size), np.asarray(drawn.size))
+            continue
+        drift = np.linalg.norm(mean[:, :2], axis=1) + 2 * np.sqrt(2) * c.current.ou_sigma
+        expected = np.maximum(1.0, (speed / (speed - drift)) ** 3) / c.randomization.fin_lift_scale[0]
+        np.testing.assert_allclose(np.asarray(task.path.size), np.asarray(drawn.size) * expected, rtol=1e-5)
+        assert expected.min() >= 1 / 0.8 and expected.max() > 2.0  # every episode widened; the strong currents more
+        # the vehicle starts on the fitted path as on the drawn one: within the start offset
+        assert np.asarray(states.metrics["position_error"]).max() <= np.hypot(c.start_offset, c.start_offset / 2) + 1e-4
+
+
+def test_a_current_faster_than_the_path_is_refused():
+    with pytest.raises(UserError, match=r"'path.speed' \(0.5, 2.0\) must stay above the current's fastest horizontal drift"):
+        mj.make("Remus100-CircleFollowingDisturbed", path={"speed": (0.5, 2.0)})
+    mj.make("Remus100-CircleFollowing", path={"speed": (0.5, 2.0)})  # no current: any speed
+
+
+def _level_pitch_range(vehicle, cob_shift):
+    """Steady pitch (deg, FLU: negative nose up) of `vehicle` at 1 m/s with its centre of buoyancy
+    shifted by `cob_shift` (3,) m, stern planes at either limit: (lowest, highest)."""
+    from marinejax.frames import quat_to_euler
+    from marinejax.physics import initial_state, rollout
+
+    sys = vehicle.sys.replace(hydro=vehicle.sys.hydro.replace(center_of_buoyancy=vehicle.sys.hydro.center_of_buoyancy + jnp.asarray(cob_shift)))
+    rpm = 608.0  # 1 m/s in straight flight (2.51 m/s at 1525 rpm)
+    pitch = []
+    for stern in (-1.0, 1.0):
+        commands = np.tile(np.array([0.0, stern, 2.0 * rpm / 1525.0 - 1.0], np.float32), (600, 1))
+        traj = rollout(vehicle, commands, initial_state(vehicle, velocity=(1.0, 0.0, 0.0), actuators=(0.0, 0.0, rpm)),
+                       control_dt=0.1, substeps=2, sys=sys)
+        pitch.append(float(np.degrees(quat_to_euler(traj.quaternion[-1])[1])))
+    return min(pitch), max(pitch)
+
+
+def test_a_torpedos_trim_randomization_leaves_its_stern_planes_room_to_fly_level():
+    """The torpedo tasks draw the centre of buoyancy within ±1 mm (the ROVs: ±5 mm). At 1 m/s the
+    REMUS 100's stern planes hold ±9.5° of pitch; 5 mm of trim error would leave it unable to fly
+    level (it could not climb or not dive), 1 mm leaves it more than 5° either way."""
+    env = mj.make("Remus100-CircleFollowingDisturbed")
+    offset = env.config.randomization.cob_offset
+    assert offset == 0.001 and mj.make("BlueROV2Heavy-StationKeepingDisturbed").config.randomization.cob_offset == 0.005
+    low, high = _level_pitch_range(env.vehicle, (0.0, 0.0, 0.0))
+    assert low == pytest.approx(-high, abs=0.3) and 8.0 < high < 11.0
+    for shift in (offset, -offset):
+        low, high = _level_pitch_range(env.vehicle, (shift, 0.0, 0.0))
+        assert low < -5.0 and high > 5.0
+    low, high = _level_pitch_range(env.vehicle, (0.005, 0.0, 0.0))
+    assert high < -3.0  # nose up whatever the stern planes do

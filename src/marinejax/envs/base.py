@@ -68,6 +68,7 @@ from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_euler, quat_to_mat
 from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams, PlantState
+from marinejax.plant.current import CurrentState
 from marinejax.plant.estimator import estimated_state, estimator_init, estimator_update
 from marinejax.plant.scene_sensors import SCENE_SENSOR_FIELDS
 from marinejax.vehicle import Vehicle
@@ -263,6 +264,7 @@ class MarineEnv(Env):
             params = self.plant.sample_params(k_params)
         params = self.arrange_scene(params, task)  # the episode's obstacles, for a task that places them
         ps = self.plant.init(k_cur, params, self._initial_pose(k_pose, task))
+        task = self.fit_task(k_task, task, params, ps.current)  # what the episode's current and physics allow
         action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
             "rng": rng,
@@ -539,6 +541,12 @@ class MarineEnv(Env):
 
     def _initial_pose(self, rng: jax.Array, task: Any) -> VehicleState:
         raise NotImplementedError
+
+    def fit_task(self, rng: jax.Array, task: Any, params: PlantParams, current: CurrentState) -> Any:
+        """The episode's task (drawn by `_sample_task` from the same `rng`) fitted to what the
+        episode's physics and current allow, without moving its start (the vehicle is already
+        placed by `_initial_pose`). Most tasks keep it as drawn."""
+        return task
 
     def arrange_scene(self, params: PlantParams, task: Any) -> PlantParams:
         """The episode's parameters with the scene's movable geoms placed for `task`

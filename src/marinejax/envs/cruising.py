@@ -18,7 +18,7 @@ from marinejax.envs.base import EnvConfig, MarineEnv
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler
 from marinejax.physics import VehicleState
-from marinejax.plant import CurrentConfig
+from marinejax.plant import CurrentConfig, RandomizationConfig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,6 +30,11 @@ class CruisingConfig(EnvConfig):
     substeps: int = 2  # two 50 ms physics steps per action
     top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed, linear in speed
     current: CurrentConfig = CurrentConfig(speed=(0.0, 0.5))  # m/s, used when current.mode is not "off" (Disturbed)
+    # A torpedo is ballasted to trim: its centre of buoyancy drawn within ±1 mm of the nominal (about
+    # 3° of pitch or roll with the REMUS 100's 2 cm BG), not the ROVs' ±5 mm (14°), which takes most
+    # of the stern planes' moment at 1 m/s and has no actuator at all in roll: with it, a REMUS at
+    # 1.2 m/s could neither climb (stern planes pinned at their limit) nor hold a turn (docs/results.md).
+    randomization: RandomizationConfig = RandomizationConfig(cob_offset=0.001)
 
     def __post_init__(self):
         super().__post_init__()

@@ -7,8 +7,23 @@ from the previous one, so it never jumps to another part of the path). The vehic
 path's start point, up to `start_offset` m off it sideways and half that vertically, on the path's
 heading within ±`start_heading_error` rad, moving forward at the commanded speed. The defaults
 (0.5 m, 0.1 rad) let it reach the path within the first `settle_time` s: at 1 m/s the REMUS 100
-turns at most 1/18 m/s² sideways (turning radius 18 m), and a bang-bang sideways move of y metres
-takes at least 2·sqrt(18·y) s, 6 s for 0.5 m but 12 s for 2 m.
+turns at most 1/24 m/s² sideways (turning radius 24 m at full rudder), and a bang-bang sideways move
+of y metres takes at least 2·sqrt(24·y) s, 7 s for 0.5 m but 14 s for 2 m.
+
+Under a current or randomized physics (the Disturbed variants) the path is fitted to what the
+episode lets the vehicle turn (`fit_task`). A torpedo turns through the water on a circle of radius
+R_t(U) at its speed U through the water. Carried along the path by a current c while it holds the
+commanded speed V over the ground, it moves through the water at V − c and must still turn the
+ground track at V/R: that asks R ≥ R_t(V − c)·(V/(V − c))². R_t grows as the speed falls (the fins'
+moment goes as U², the linear damping's as U: the REMUS 100 turns on 18.5 m at 2.5 m/s, 24 m at
+1 m/s, 34 m at 0.48 m/s), at most as 1/U; weaker fins (lift × f, `randomization.fin_lift_scale`)
+widen it at most as 1/f. So every radius of curvature of the episode's path is multiplied by
+(V/(V − c))³ / f_min, with c the horizontal speed of the episode's mean current plus
+2·√2·`current.ou_sigma` (what the OU current adds, two standard deviations) and f_min the lowest fin
+lift the randomization draws: the nominal path's margin over the turning circle at speed V is kept
+for the worst fins and the strongest current of the episode. The mean current is what a mission
+planner knows; the fins' true lift is not, hence its lower bound. The start point and direction
+stay, so the start pose is the drawn one. The nominal tasks (no current, no randomization) keep the drawn path.
 
 Observation (body frame FLU unless stated), size 3·m + 17 + 2 × number of actions (+ 4 with the integral),
 m = `num_preview_points`:
@@ -68,6 +83,15 @@ class PathFollowingConfig(CruisingConfig):
         check_nonnegative(self, ("settle_time", "start_offset", "start_heading_error", "preview_spacing"))
         if self.num_preview_points < 1:
             raise UserError(f"config 'num_preview_points' must be >= 1, got {self.num_preview_points}")
+        if self.current.mode != "off" and not self.path.speed[0] > current_margin(self) + self.current.speed[1]:
+            raise UserError(f"config 'path.speed' {self.path.speed} must stay above the current's fastest horizontal drift, "
+                            f"'current.speed'[1] + 2·√2·'current.ou_sigma' = {current_margin(self) + self.current.speed[1]:.3f} m/s "
+                            "(a torpedo carried faster than it is asked to move cannot turn the path)")
+
+
+def current_margin(config: CruisingConfig) -> float:
+    """m/s added to the mean current's horizontal speed for the OU current's wander (two standard deviations)."""
+    return 2.0 * 2.0**0.5 * config.current.ou_sigma if config.current.mode == "ou" else 0.0
 
 
 @struct.dataclass
@@ -101,6 +125,26 @@ class PathFollowing(CruisingEnv):
         speed = jax.random.uniform(k2, minval=self.config.path.speed[0], maxval=self.config.path.speed[1])
         s = jnp.zeros(())
         return PathTask(path=path, speed=speed, s=s, along_speed=speed, yaw=_course(paths.point(self.kind, path, s)[1]))
+
+    def fit_task(self, rng, task: PathTask, params, current) -> PathTask:
+        """The drawn path with every radius of curvature × `turn_scale` (module docstring)."""
+        scale = self.turn_scale(task.speed, current.mean)
+        if scale is None:
+            return task
+        # the key `_sample_task` drew the path from, so the fitted path is the drawn one, widened
+        return task.replace(path=paths.sample(self.kind, jax.random.split(rng)[0], self.config.path, scale))
+
+    def turn_scale(self, speed: jnp.ndarray, current_mean: jnp.ndarray) -> jnp.ndarray | None:
+        """(V/(V − c))³ / f_min (module docstring) for commanded speed V (m/s) and the episode's mean
+        current (3,) m/s, world; None (the path as drawn) with no current and no randomization."""
+        c = self.config
+        if c.current.mode == "off" and not c.randomization.enabled:
+            return None
+        fins = min(1.0, c.randomization.fin_lift_scale[0]) if c.randomization.enabled else 1.0
+        if c.current.mode == "off":
+            return jnp.asarray(1.0 / fins)
+        drift = jnp.linalg.norm(current_mean[:2]) + current_margin(c)
+        return jnp.maximum(1.0, (speed / (speed - drift)) ** 3) / fins
 
     def advance_task(self, task: PathTask, vs: VehicleState, info) -> PathTask:
         s = paths.project(self.kind, task.path, task.s, vs.position)

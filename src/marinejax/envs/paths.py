@@ -17,7 +17,8 @@ Kinds:
               m per turn; lemniscate of Bernoulli of half-width `lemniscate_size` (its tightest
               radius of curvature is a third of that). These three are `trajectories`' shapes.
 The defaults keep every radius of curvature at or above 25 m, beyond the REMUS 100's turning
-circle at full rudder (37 m across, `marinejax validate --vehicle remus100`).
+circle at full rudder (37 m across at full speed, `marinejax validate --vehicle remus100`; 48 m
+across at 1 m/s, the slowest commanded speed).
 """
 
 from __future__ import annotations
@@ -85,14 +86,20 @@ class Legs:
     radius: jnp.ndarray  # () m
 
 
-def sample(kind: str, rng: jax.Array, config: PathConfig):
-    """One episode's path of `kind` (static under jit): a `Legs`, or a `trajectories.TrajectoryParams`."""
+def sample(kind: str, rng: jax.Array, config: PathConfig, turn_scale: jnp.ndarray | float = 1.0):
+    """One episode's path of `kind` (static under jit): a `Legs`, or a `trajectories.TrajectoryParams`.
+    `turn_scale` (≥ 1, may be traced) multiplies every radius of curvature (the circle's and the
+    helix's radius, with the helix's descent per turn, the lemniscate's size, the legs' fillet
+    radius) and leaves the start point, the start direction, the grades and the legs' lengths as
+    they are."""
     check_kind(kind)
     if kind != "lines":
         size = config.lemniscate_size if kind == "lemniscate" else config.radius
         curve = trajectories.TrajectoryConfig(speed=(1.0, 1.0), size=size, helix_pitch=config.helix_pitch,
                                               center_z=config.depth, ramp_time=0.0)
         params = trajectories.sample_params(kind, rng, curve)
+        if not isinstance(turn_scale, (int, float)) or turn_scale != 1.0:
+            params = params.replace(size=params.size * turn_scale, pitch=params.pitch * turn_scale)  # the helix keeps its grade
         # place the start point (not the centre) at the origin's x and y, at the drawn depth
         start = trajectories.point_at(kind, params, jnp.zeros(()))
         return params.replace(center=params.center - start.at[2].set(0.0))
@@ -104,7 +111,7 @@ def sample(kind: str, rng: jax.Array, config: PathConfig):
     grades = jax.random.uniform(k[3], (n,), minval=-config.leg_grade, maxval=config.leg_grade)
     turns = jax.random.uniform(k[4], (max(n - 1, 1), 2))
     turn = (config.turn[0] + turns[:, 0] * (config.turn[1] - config.turn[0])) * jnp.where(turns[:, 1] < 0.5, -1.0, 1.0)
-    r = jnp.asarray(config.fillet_radius, jnp.float32)
+    r = jnp.asarray(config.fillet_radius, jnp.float32) * turn_scale
     point, s = jnp.array([0.0, 0.0, 0.0]).at[2].set(depth), jnp.zeros(())
     pieces = []
     for i in range(n):  # turtle: a straight leg, then the turn towards the next
