@@ -98,8 +98,7 @@ def sample(kind: str, rng: jax.Array, config: PathConfig, turn_scale: jnp.ndarra
         curve = trajectories.TrajectoryConfig(speed=(1.0, 1.0), size=size, helix_pitch=config.helix_pitch,
                                               center_z=config.depth, ramp_time=0.0)
         params = trajectories.sample_params(kind, rng, curve)
-        if not isinstance(turn_scale, (int, float)) or turn_scale != 1.0:
-            params = params.replace(size=params.size * turn_scale, pitch=params.pitch * turn_scale)  # the helix keeps its grade
+        params = params.replace(size=params.size * turn_scale, pitch=params.pitch * turn_scale)  # the helix keeps its grade
         # place the start point (not the centre) at the origin's x and y, at the drawn depth
         start = trajectories.point_at(kind, params, jnp.zeros(()))
         return params.replace(center=params.center - start.at[2].set(0.0))
