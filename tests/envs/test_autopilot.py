@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import marinejax as mj
+from marinejax.envs.base import heading_error
 from marinejax.errors import UserError
 
 
@@ -141,3 +142,76 @@ def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
     slow, fast = speed < 0.6, speed >= 1.0
     assert step[slow].max() < 0.15 * c.depth_step and step[fast].max() > 0.9 * c.depth_step
     assert turn[slow].max() < 0.37 * c.heading_step and turn[fast].max() > 0.9 * c.heading_step
+
+
+def test_in_a_current_the_set_points_are_those_the_nominal_task_asks_at_the_slowest_speed_through_the_water():
+    """Disturbed: the speed set-points keep the speed through the water within speed_range whatever
+    the heading (U ± c), the depth and heading changes are the nominal's at U − c with the weakest
+    fins, and the start stays where it was placed, its errors to the first set-point shrunk alike.
+    Nominal: the set-points as drawn."""
+    disturbed, nominal = mj.make("Remus100-AutopilotDisturbed"), mj.make("Remus100-Autopilot")
+    keys = jax.random.split(jax.random.PRNGKey(4), 64)
+    c = disturbed.config
+    lo, hi = c.speed_range
+    for env in (disturbed, nominal):
+        states = jax.jit(jax.vmap(env.reset))(keys)
+        task = jax.tree.map(lambda a: np.asarray(a, np.float64), states.info["task"])
+        drawn = jax.tree.map(lambda a: np.asarray(a, np.float64), jax.vmap(lambda k: env._sample_task(jax.random.split(k, 6)[1]))(keys))
+        if env is nominal:
+            for name in ("depth", "heading", "speed"):
+                np.testing.assert_allclose(getattr(task, name), getattr(drawn, name), rtol=1e-6)  # as drawn (jitted apart: last bit)
+            continue
+        mean = np.asarray(states.pipeline_state.current.mean, np.float64)
+        drift = np.linalg.norm(mean[:, :2], axis=1) + 2 * np.sqrt(2) * c.current.ou_sigma
+        speed = lo + drift[:, None] + (drawn.speed - lo) * (hi - lo - 2 * drift[:, None]) / (hi - lo)
+        np.testing.assert_allclose(task.speed, speed, rtol=1e-5)
+        assert np.all(task.speed - drift[:, None] >= lo - 1e-5) and np.all(task.speed + drift[:, None] <= hi + 1e-5)
+        u = np.clip((task.speed - drift[:, None]) * np.sqrt(c.randomization.fin_lift_scale[0]) / c.full_manoeuvre_speed, 0, 1)
+        # the second segment's changes: the drawn fraction of the full step, at the fitted reach
+        drawn_u = np.clip(drawn.speed / c.full_manoeuvre_speed, 0, 1)
+        inside = lambda d: (d > c.depth_range[0] + 1e-3) & (d < c.depth_range[1] - 1e-3)  # noqa: E731 (not clipped to depth_range)
+        free = inside(task.depth[:, 0]) & inside(task.depth[:, 1]) & inside(drawn.depth[:, 1])
+        np.testing.assert_allclose(np.diff(task.depth)[free, 0], (np.diff(drawn.depth)[:, 0] * (u[:, 1] / drawn_u[:, 1]) ** 4)[free],
+                                   atol=1e-4)
+        np.testing.assert_allclose(np.diff(task.heading)[:, 0], np.diff(drawn.heading)[:, 0] * (u[:, 1] / drawn_u[:, 1]) ** 2, atol=1e-5)
+        assert free.sum() > 48 and (u[:, 1] < drawn_u[:, 1] - 0.05).sum() > 16  # most episodes fitted, many asked less
+        # the start is the drawn one; its depth and heading errors to the first set-point shrink by the reach
+        vs = jax.vmap(env.plant.vehicle_state)(states.pipeline_state)
+        z = np.asarray(vs.position[:, 2], np.float64)
+        np.testing.assert_allclose((z - task.depth[:, 0])[free], ((z - drawn.depth[:, 0]) * (u[:, 0] / drawn_u[:, 0]) ** 4)[free], atol=1e-4)
+        yaw_error = np.asarray(jax.vmap(heading_error)(vs.quaternion, jnp.asarray(task.heading[:, 0], jnp.float32)))
+        drawn_yaw_error = np.asarray(jax.vmap(heading_error)(vs.quaternion, jnp.asarray(drawn.heading[:, 0], jnp.float32)))
+        np.testing.assert_allclose(yaw_error, drawn_yaw_error * (u[:, 0] / drawn_u[:, 0]) ** 2, atol=1e-4)
+
+
+def test_a_current_too_fast_for_the_speed_range_is_refused():
+    with pytest.raises(UserError, match=r"'speed_range' \(0.8, 2.0\) must be wider than twice the current's fastest horizontal drift"):
+        mj.make("Remus100-AutopilotDisturbed", speed_range=(0.8, 2.0))
+    mj.make("Remus100-Autopilot", speed_range=(0.8, 2.0))  # no current: any range
+
+
+def _best_climb_rate(vehicle, speed, net_weight):
+    """m/s of steady climb of `vehicle` at `speed` m/s through still water, `net_weight` N heavier than
+    neutral, over the last 10 s of a minute with the stern planes at either limit: the better one."""
+    from marinejax.physics import initial_state, rollout
+
+    h = vehicle.sys.hydro
+    sys = vehicle.sys.replace(hydro=h.replace(volume=h.volume - net_weight / (1000.0 * 9.81)))
+    rpm = 608.0 * speed  # straight flight: 2.51 m/s at 1525 rpm
+    rates = []
+    for stern in (-1.0, 1.0):
+        commands = np.tile(np.array([0.0, stern, 2.0 * rpm / 1525.0 - 1.0], np.float32), (600, 1))
+        traj = rollout(vehicle, commands, initial_state(vehicle, velocity=(speed, 0.0, 0.0), actuators=(0.0, 0.0, rpm)),
+                       control_dt=0.1, substeps=2, sys=sys)
+        z = np.asarray(traj.position[:, 2])
+        rates.append((z[-1] - z[-101]) / 10.0)
+    return max(rates)
+
+
+def test_below_one_metre_per_second_the_stern_planes_cannot_hold_a_few_newtons_of_weight():
+    """Why the disturbed autopilot still loses depth where the current leaves the REMUS slow through
+    the water: the planes' lift goes as U², so 2 N of net weight (the randomization draws up to
+    1.5 N, the disturbance up to 4 N) sinks it at 0.75 m/s whatever the planes do, and not at 1 m/s."""
+    remus = mj.load_vehicle("remus100")
+    assert _best_climb_rate(remus, 0.75, 2.0) < -0.01
+    assert _best_climb_rate(remus, 1.0, 2.0) > 0.05

@@ -8,7 +8,7 @@ import pytest
 
 import marinejax as mj
 from marinejax.envs import paths
-from marinejax.envs.path_following import current_margin
+from marinejax.envs.cruising import current_margin
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 

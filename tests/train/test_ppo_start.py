@@ -84,13 +84,15 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
 
 
 def test_every_recipe_that_starts_from_a_policy_fits_it():
-    # the REMUS's curved paths and waypoints, and every disturbed path, start from its circle policy;
-    # the four-fin variant (another action size) trains from scratch
+    # the REMUS's curved paths and waypoints, and every disturbed path, start from its circle policy,
+    # its disturbed autopilot from its autopilot policy; the four-fin variant (another action size)
+    # trains from scratch
     from marinejax.train.hyperparams import tuned_config
 
     starting = {name: tuned_config(name).ppo for name in mj.list_envs() if tuned_config(name).ppo.init_from}
     paths_ = {f"Remus100-{p}Following" for p in ("Helix", "Lemniscate", "Waypoint")}
-    assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing"}}
+    assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}}
+    assert starting["Remus100-AutopilotDisturbed"].init_from == "Remus100-Autopilot"
     for name, config in starting.items():
         params = ppo.initial_params(mj.make(name, **tuned_config(name).env_overrides), config, seed=0)
         assert len(params) == 3, name

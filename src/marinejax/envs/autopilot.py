@@ -14,6 +14,15 @@ pitch stiffness stays, so its reachable pitch, and with it its climb rate (∝ U
 with speed; its turning circle stays, so its turn rate falls with U (the REMUS 100 at 0.6 m/s
 holds about 3° of pitch, and turns 180° in about two minutes at 0.5 m/s).
 
+Under a current (the Disturbed variant) the speed set-point is over the ground (body x, as a DVL
+measures it), but the fins work at the speed through the water, the set-point ± the current along
+the heading. So the set-points are fitted to the episode (`fit_task`): the speeds are drawn within
+[lo + c, hi − c] of `speed_range` = (lo, hi), c the horizontal speed of the episode's mean current
+plus what the OU current wanders (`cruising.current_margin`), so the speed through the water stays
+within `speed_range` on any heading; the depth and heading changes, and the start's errors to the
+first set-point, are the nominal's at the slowest speed through the water U − c with the weakest
+fins drawn (lift × f: speed × √f); the start pose stays as drawn.
+
 Observation (body frame FLU unless stated), size 17 + 2 × number of actions (+ 4 with the integral):
   [0]     depth error, set-point z − z (m, world z up; positive: rise), clipped to ±`depth_clip`
   [1:3]   sin, cos of the heading error (set-point heading − heading)
@@ -45,7 +54,7 @@ from flax import struct
 
 from marinejax.config import check_range
 from marinejax.envs.base import RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingConfig, CruisingEnv
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
@@ -85,6 +94,11 @@ class AutopilotConfig(CruisingConfig):
             raise UserError(f"config 'segments' must be >= 1, got {self.segments}")
         if self.settled > self.segment_duration:
             raise UserError(f"config 'settled' ({self.settled} s) must not exceed 'segment_duration' ({self.segment_duration} s)")
+        drift = self.current.speed[1] + current_margin(self)
+        if self.current.mode != "off" and not self.speed_range[1] - self.speed_range[0] > 2 * drift:
+            raise UserError(f"config 'speed_range' {self.speed_range} must be wider than twice the current's fastest horizontal "
+                            f"drift, 'current.speed'[1] + 2·√2·'current.ou_sigma' = {drift:.3f} m/s (the speed through the water "
+                            "must stay within 'speed_range' whatever the heading)")
 
 
 @struct.dataclass
@@ -109,15 +123,40 @@ class Autopilot(CruisingEnv):
 
     def _sample_task(self, rng):
         c = self.config
+        speed = jax.random.uniform(jax.random.split(rng, 4)[3], (c.segments,), minval=c.speed_range[0], maxval=c.speed_range[1])
+        return self._set_points(rng, speed, *self._reach(speed))
+
+    def _set_points(self, rng, speed, depth_reach, heading_reach, first=None) -> SetPoints:
+        """Set-points drawn from `rng` (the key `_sample_task` split) for commanded speeds `speed`
+        (m/s) with the changes scaled by `depth_reach` and `heading_reach` (per segment); `first`
+        (depth m, heading rad) replaces the drawn first set-point."""
+        c = self.config
         k = jax.random.split(rng, 4)
-        speed = jax.random.uniform(k[3], (c.segments,), minval=c.speed_range[0], maxval=c.speed_range[1])
-        depth_reach, heading_reach = self._reach(speed)
         depth0 = jax.random.uniform(k[0], minval=c.depth_range[0], maxval=c.depth_range[1])
         steps = jax.random.uniform(k[1], (c.segments - 1,), minval=-c.depth_step, maxval=c.depth_step) * depth_reach[1:]
-        depth = jnp.clip(depth0 + jnp.concatenate([jnp.zeros(1), jnp.cumsum(steps)]), c.depth_range[0], c.depth_range[1])
         raw = jax.random.uniform(k[2], (c.segments,), minval=-c.heading_step, maxval=c.heading_step)
-        heading = jnp.cumsum((raw * heading_reach).at[0].set(raw[0] * jnp.pi / c.heading_step))  # the first: any heading
+        heading0 = raw[0] * jnp.pi / c.heading_step  # the first: any heading
+        if first is not None:
+            depth0, heading0 = first
+        depth = jnp.clip(depth0 + jnp.concatenate([jnp.zeros(1), jnp.cumsum(steps)]), c.depth_range[0], c.depth_range[1])
+        heading = jnp.cumsum((raw * heading_reach).at[0].set(heading0))
         return SetPoints(depth=depth, heading=heading, speed=speed, yaw=heading[0])
+
+    def fit_task(self, rng, task: SetPoints, params, current, start) -> SetPoints:
+        """The set-points for what the episode's current and fins allow (module docstring); the
+        drawn ones without current and randomization."""
+        c = self.config
+        if c.current.mode == "off" and not c.randomization.enabled:
+            return task
+        lo, hi = c.speed_range
+        drift = jnp.linalg.norm(current.mean[:2]) + current_margin(c) if c.current.mode != "off" else jnp.zeros(())
+        speed = lo + drift + (task.speed - lo) * ((hi - lo - 2 * drift) / (hi - lo) if hi > lo else 0.0)
+        depth_reach, heading_reach = self._reach((speed - drift) * weakest_fins(c) ** 0.5)
+        # the start's errors shrink with the first segment's reach, the start itself stays
+        drawn_depth, drawn_heading = (jnp.maximum(r, 1e-9) for r in self._reach(task.speed[0]))
+        depth0 = start.position[2] + (task.depth[0] - start.position[2]) * (depth_reach[0] / drawn_depth)
+        heading0 = task.heading[0] - heading_error(start.quaternion, task.heading[0]) * (1.0 - heading_reach[0] / drawn_heading)
+        return self._set_points(rng, speed, depth_reach, heading_reach, first=(depth0, heading0))
 
     def _reach(self, speed):
         """The fractions (depth, heading) of the full set-point changes asked at commanded speed(s) (m/s)."""

@@ -264,7 +264,8 @@ class MarineEnv(Env):
             params = self.plant.sample_params(k_params)
         params = self.arrange_scene(params, task)  # the episode's obstacles, for a task that places them
         ps = self.plant.init(k_cur, params, self._initial_pose(k_pose, task))
-        task = self.fit_task(k_task, task, params, ps.current)  # what the episode's current and physics allow
+        vs = self.plant.vehicle_state(ps)
+        task = self.fit_task(k_task, task, params, ps.current, vs)  # what the episode's current and physics allow
         action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
             "rng": rng,
@@ -276,7 +277,6 @@ class MarineEnv(Env):
         }
         if self.plant.sys.contacts:
             info["contact"] = jnp.zeros(6)
-        vs = self.plant.vehicle_state(ps)
         if self.plant.scene_sensors:  # altimeter, sonar: they see the scene
             info["scene_sensors"] = self.plant.scene_sensors.init(jax.random.fold_in(k_sensors, 1), self.plant.cast(params, ps))
         if self._sensor_mode:
@@ -542,10 +542,10 @@ class MarineEnv(Env):
     def _initial_pose(self, rng: jax.Array, task: Any) -> VehicleState:
         raise NotImplementedError
 
-    def fit_task(self, rng: jax.Array, task: Any, params: PlantParams, current: CurrentState) -> Any:
+    def fit_task(self, rng: jax.Array, task: Any, params: PlantParams, current: CurrentState, start: VehicleState) -> Any:
         """The episode's task (drawn by `_sample_task` from the same `rng`) fitted to what the
-        episode's physics and current allow, without moving its start (the vehicle is already
-        placed by `_initial_pose`). Most tasks keep it as drawn."""
+        episode's physics and current allow, without moving its start (`start`: the vehicle as
+        `_initial_pose` placed it). Most tasks keep it as drawn."""
         return task
 
     def arrange_scene(self, params: PlantParams, task: Any) -> PlantParams:

@@ -42,6 +42,17 @@ class CruisingConfig(EnvConfig):
             raise UserError(f"config 'top_speed' must be > 0, got {self.top_speed}")
 
 
+def current_margin(config: CruisingConfig) -> float:
+    """m/s added to the mean current's horizontal speed for the OU current's wander (two standard deviations)."""
+    return 2.0 * 2.0**0.5 * config.current.ou_sigma if config.current.mode == "ou" else 0.0
+
+
+def weakest_fins(config: CruisingConfig) -> float:
+    """The lowest fin lift factor the randomization draws (1 without randomization): the episode's
+    true fins are unknown to whoever plans its task, their lower bound is not."""
+    return min(1.0, config.randomization.fin_lift_scale[0]) if config.randomization.enabled else 1.0
+
+
 class CruisingEnv(MarineEnv):
     """Base of the torpedo tasks (their configs are `CruisingConfig`s)."""
 

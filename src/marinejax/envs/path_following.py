@@ -54,7 +54,7 @@ from flax import struct
 import marinejax.envs.paths as paths
 from marinejax.config import check_nonnegative
 from marinejax.envs.base import RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingConfig, CruisingEnv
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
@@ -89,11 +89,6 @@ class PathFollowingConfig(CruisingConfig):
                             "(a torpedo carried faster than it is asked to move cannot turn the path)")
 
 
-def current_margin(config: CruisingConfig) -> float:
-    """m/s added to the mean current's horizontal speed for the OU current's wander (two standard deviations)."""
-    return 2.0 * 2.0**0.5 * config.current.ou_sigma if config.current.mode == "ou" else 0.0
-
-
 @struct.dataclass
 class PathTask:
     path: object  # the episode's path (`paths.sample`)
@@ -126,7 +121,7 @@ class PathFollowing(CruisingEnv):
         s = jnp.zeros(())
         return PathTask(path=path, speed=speed, s=s, along_speed=speed, yaw=_course(paths.point(self.kind, path, s)[1]))
 
-    def fit_task(self, rng, task: PathTask, params, current) -> PathTask:
+    def fit_task(self, rng, task: PathTask, params, current, start) -> PathTask:
         """The drawn path with every radius of curvature × `turn_scale` (module docstring)."""
         scale = self.turn_scale(task.speed, current.mean)
         if scale is None:
@@ -140,7 +135,7 @@ class PathFollowing(CruisingEnv):
         c = self.config
         if c.current.mode == "off" and not c.randomization.enabled:
             return None
-        fins = min(1.0, c.randomization.fin_lift_scale[0]) if c.randomization.enabled else 1.0
+        fins = weakest_fins(c)
         if c.current.mode == "off":
             return jnp.asarray(1.0 / fins)
         drift = jnp.linalg.norm(current_mean[:2]) + current_margin(c)

@@ -127,7 +127,7 @@ class TorpedoDocking(PathFollowing):
         return DockApproachTask(path=line, speed=speed, s=jnp.zeros(()), along_speed=speed, yaw=jnp.zeros(()),
                                 docked=jnp.zeros(()), latched=jnp.zeros(()), miss=-jnp.ones(()), at_dock=jnp.zeros(4))
 
-    def fit_task(self, rng, task: DockApproachTask, params, current) -> DockApproachTask:
+    def fit_task(self, rng, task: DockApproachTask, params, current, start) -> DockApproachTask:
         """The approach line as drawn: a straight has no turn to widen."""
         return task
 
