@@ -89,6 +89,10 @@ def test_the_disturbed_variant_draws_the_fins_and_propeller_and_currents_up_to_h
     env = mj.make("Remus100-AutopilotDisturbed")
     c = env.config.randomization
     assert env.config.current.speed == (0.0, 0.5) and env.config.current.mode == "ou"
+    # horizontal mean currents: a sinking one would be out of reach slow through the water
+    assert env.config.current.max_elevation_deg == 0.0
+    means = np.asarray(jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(1), 16)).pipeline_state.current.mean)
+    assert np.abs(means[:, 2]).max() < 1e-6 and np.linalg.norm(means[:, :2], axis=1).max() > 0.2
     params = jax.vmap(env.plant.sample_params)(jax.random.split(jax.random.PRNGKey(0), 64))
     rudder, stern, propeller = params.actuators
     for fins in (rudder, stern):

@@ -136,8 +136,8 @@ _TUNED_ENVS.update({f"Remus100-{task}{d}": _FROM_CIRCLE for task in ("HelixFollo
                     for d in ("", "Disturbed")})
 _TUNED_ENVS["Remus100-CircleFollowingDisturbed"] = _FROM_CIRCLE
 # The disturbed autopilot fine-tunes the shipped autopilot policy with the autopilot's settings for
-# 6 M steps: 0.27-0.44 m of depth error over seeds 0-4 in 144-292 s, against 0.68-1.03 m before its
-# set-points were fitted to the current (docs/results.md).
+# 6 M steps: 0.09-0.12 m of depth error over seeds 0-4 in 133-180 s, against 0.68-1.03 m before its
+# set-points were fitted to the current and its currents made horizontal (docs/results.md).
 _TUNED_ENVS["Remus100-AutopilotDisturbed"] = (dataclasses.replace(_TUNED["Autopilot"][0], num_timesteps=6_000_000,
                                                                   init_from="Remus100-Autopilot"), {})
 # Torpedo docking (the same task name as the ROVs' docking, another class): a straight path ending in
