@@ -54,7 +54,7 @@ from flax import struct
 
 from marinejax.config import check_range
 from marinejax.envs.base import RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_margin, weakest_fins
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
@@ -154,7 +154,7 @@ class Autopilot(CruisingEnv):
         if c.current.mode == "off" and not c.randomization.enabled:
             return task
         lo, hi = c.speed_range
-        drift = jnp.linalg.norm(current.mean[:2]) + current_margin(c) if c.current.mode != "off" else jnp.zeros(())
+        drift = current_drift(c, current.mean)
         speed = lo + drift + (task.speed - lo) * ((hi - lo - 2 * drift) / (hi - lo) if hi > lo else 0.0)
         depth_reach, heading_reach = self._reach((speed - drift) * weakest_fins(c) ** 0.5)
         # the start's errors shrink with the first segment's reach, the start itself stays

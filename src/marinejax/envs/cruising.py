@@ -47,6 +47,14 @@ def current_margin(config: CruisingConfig) -> float:
     return 2.0 * 2.0**0.5 * config.current.ou_sigma if config.current.mode == "ou" else 0.0
 
 
+def current_drift(config: CruisingConfig, current_mean: jnp.ndarray) -> jnp.ndarray:
+    """m/s: the horizontal speed of the episode's mean current ((3,) m/s, world) plus `current_margin`;
+    0 with the current off."""
+    if config.current.mode == "off":
+        return jnp.zeros(())
+    return jnp.linalg.norm(current_mean[:2]) + current_margin(config)
+
+
 def weakest_fins(config: CruisingConfig) -> float:
     """The lowest fin lift factor the randomization draws (1 without randomization): the episode's
     true fins are unknown to whoever plans its task, their lower bound is not."""

@@ -54,7 +54,7 @@ from flax import struct
 import marinejax.envs.paths as paths
 from marinejax.config import check_nonnegative
 from marinejax.envs.base import RewardConfig, heading_error
-from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_margin, weakest_fins
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
@@ -138,7 +138,7 @@ class PathFollowing(CruisingEnv):
         fins = weakest_fins(c)
         if c.current.mode == "off":
             return jnp.asarray(1.0 / fins)
-        drift = jnp.linalg.norm(current_mean[:2]) + current_margin(c)
+        drift = current_drift(c, current_mean)
         return jnp.maximum(1.0, (speed / (speed - drift)) ** 3) / fins
 
     def advance_task(self, task: PathTask, vs: VehicleState, info) -> PathTask:
