@@ -214,6 +214,14 @@ def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_p
     assert "target 100.0 m met at" in proc.stdout
 
 
+def test_latest_over_best_where_the_best_policy_makes_no_error():
+    # a docking task whose policies dock every evaluation episode: error 0, which a ratio divided by
+    from marinejax.benchmarks.training import latest_over_best
+
+    assert latest_over_best(0.2, 0.1) == pytest.approx(2.0)
+    assert latest_over_best(0.0, 0.0) == 1.0 and latest_over_best(0.05, 0.0) == math.inf
+
+
 @pytest.mark.slow
 def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_path):
     args = ["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "2", "--out-dir", str(tmp_path),

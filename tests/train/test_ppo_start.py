@@ -84,16 +84,20 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
 
 
 def test_every_recipe_that_starts_from_a_policy_fits_it():
-    # the REMUS's curved paths and waypoints, and every disturbed path, start from its circle policy,
-    # its disturbed autopilot from its autopilot policy; the four-fin variant (another action size)
-    # trains from scratch
+    # the REMUS's curved paths and waypoints, every disturbed path and its docking start from its
+    # circle policy, its disturbed autopilot from its autopilot policy; the four-fin variant (another
+    # action size) trains from scratch
+    import dataclasses
+
     from marinejax.train.hyperparams import tuned_config
 
     starting = {name: tuned_config(name).ppo for name in mj.list_envs() if tuned_config(name).ppo.init_from}
-    paths_ = {f"Remus100-{p}Following" for p in ("Helix", "Lemniscate", "Waypoint")}
+    paths_ = {f"Remus100-{p}Following" for p in ("Helix", "Lemniscate", "Waypoint")} | {"Remus100-Docking"}
     assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}}
     assert starting["Remus100-AutopilotDisturbed"].init_from == "Remus100-Autopilot"
     for name, config in starting.items():
+        # the docking's warm-up for its new field, on fewer envs and steps: what is checked is the fit
+        config = dataclasses.replace(config, num_envs=8, normalizer_warmup=min(config.normalizer_warmup, 2))
         params = ppo.initial_params(mj.make(name, **tuned_config(name).env_overrides), config, seed=0)
         assert len(params) == 3, name
 
@@ -101,7 +105,12 @@ def test_every_recipe_that_starts_from_a_policy_fits_it():
 @pytest.mark.parametrize("env_name, settings, message", [
     ("Remus100-HelixFollowing", {"mirror_symmetric": False}, "has mirror_symmetric True, this run False"),
     ("Remus100-HelixFollowing", {"mirror_symmetric": True, "policy_hidden": (32, 32)}, "has policy_hidden (64, 64), this run (32, 32)"),
-    (ENV, {}, "has observation size 39, this run 26"),
+    (ENV, {"mirror_symmetric": True}, "has action size 3, this run 8"),
+    ("Remus100-Autopilot", {"mirror_symmetric": True},
+     "has observation size 39, this run 27: this env lacks its fields ['position_error', 'path_ahead', 'tangent']"),
+    ("Remus100-HelixFollowing", {"mirror_symmetric": True, "normalizer_warmup": 5},
+     "ppo 'normalizer_warmup' 5 has nothing to warm: 'init_from' 'Remus100-CircleFollowing'"),
+    ("Remus100-Docking", {"mirror_symmetric": True}, "lacks this env's observation fields ['dock']: set --ppo normalizer_warmup=N"),
 ])
 def test_init_from_a_checkpoint_that_does_not_fit_names_the_difference(env_name, settings, message):
     config = ppo.Config(init_from="Remus100-CircleFollowing", **settings)
@@ -116,10 +125,48 @@ def test_init_from_something_that_is_not_a_run_lists_the_shipped_policies(tmp_pa
         ppo.initial_params(mj.make(ENV), ppo.Config(init_from=str(tmp_path / "nowhere")), seed=0)
 
 
+def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_value(monkeypatch):
+    # the shipped circle policy on the torpedo's docking, whose observation adds the `dock` field
+    # (the latch point from the nose) amid the circle's: the widened networks compute the source's
+    # functions of the fields they share, whatever the new field holds, and the new field's
+    # normalizer holds the warm-up rollout's statistics
+    from brax.training.acme import running_statistics
+
+    from marinejax.train.checkpoints import load_params
+
+    env = mj.make("Remus100-Docking")
+    config = ppo.Config(init_from="Remus100-CircleFollowing", mirror_symmetric=True, normalizer_warmup=3, num_envs=8, batch_size=8,
+                        num_minibatches=2)
+    normalizer, policy, value = ppo.initial_params(env, config, seed=2)
+    _, source_env, (s_normalizer, s_policy, s_value), _ = load_params("Remus100-CircleFollowing")
+    dock = env.observation_fields()["dock"]
+    assert (dock.start, dock.stop) == (35, 38) and source_env.observation_size == env.observation_size - 3
+    keep = np.r_[0:dock.start, dock.stop:env.observation_size]
+    warm = ppo.warmup_normalizer(env, config, seed=2)
+    np.testing.assert_array_equal(np.asarray(normalizer.mean)[keep], np.asarray(s_normalizer.mean))
+    np.testing.assert_array_equal(np.asarray(normalizer.std)[keep], np.asarray(s_normalizer.std))
+    np.testing.assert_allclose(np.asarray(normalizer.mean)[dock], np.asarray(warm.mean)[dock], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(normalizer.std)[dock], np.asarray(warm.std)[dock], rtol=1e-6)
+    assert np.asarray(warm.std)[dock][0] > 2.0  # metres to the latch along the axis: the rollout's spread, not Brax's 1
+    assert normalizer.count == s_normalizer.count
+
+    obs = np.array(ppo.warmup_observations(env, config, seed=7)).reshape(-1, env.observation_size)
+    obs[::2, dock] += np.array([5.0, -3.0, 2.0])  # any value of the new field: no effect at the start
+    networks = ppo.env_network_factory(config, env)(env.observation_size, env.action_size,
+                                                    preprocess_observations_fn=running_statistics.normalize)
+    s_networks = ppo.env_network_factory(config, source_env)(source_env.observation_size, env.action_size,
+                                                             preprocess_observations_fn=running_statistics.normalize)
+    ours = networks.policy_network.apply(normalizer, policy, obs), networks.value_network.apply(normalizer, value, obs)
+    theirs = (s_networks.policy_network.apply(s_normalizer, s_policy, obs[:, keep]),
+              s_networks.value_network.apply(s_normalizer, s_value, obs[:, keep]))
+    for a, b in zip(ours, theirs, strict=True):
+        assert np.abs(np.asarray(b)).max() > 0.1
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
+
+
 @pytest.mark.parametrize("settings, message", [
     ({"normalizer_warmup": -1}, "ppo 'normalizer_warmup' must be >= 0 (steps), got -1"),
     ({"normalizer_warmup": 5, "normalize_observations": False}, "ppo 'normalizer_warmup' needs normalize_observations = true"),
-    ({"normalizer_warmup": 5, "init_from": "Remus100-CircleFollowing"}, "ppo 'init_from' and 'normalizer_warmup' exclude each other"),
 ])
 def test_bad_values_are_user_errors(settings, message):
     with pytest.raises(UserError, match=re.escape(message)):

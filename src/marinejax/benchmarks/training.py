@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import shutil
 import sys
 import time
@@ -113,11 +114,19 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         # the latest checkpoint on the same evaluation episodes as the best (the training evaluations
         # draw new episodes each time, so the best of them is partly the luck of its episodes)
         "latest_error_mean_m": latest["position_error_mean_m"], "latest_heading_error_mean_deg": latest.get("heading_error_mean_deg"),
-        "latest_checkpoint": latest["checkpoint"], "latest_over_best": latest["position_error_mean_m"] / ev["position_error_mean_m"],
+        "latest_checkpoint": latest["checkpoint"], "latest_over_best": latest_over_best(latest["position_error_mean_m"], ev["position_error_mean_m"]),
         "env_steps": summary["env_steps"], "wall_time_s": summary["wall_time_s"],
         "target_m": target,
         "target_steps": reached.get("step"), "target_wall_s": reached.get("elapsed"),
     }
+
+
+def latest_over_best(latest: float, best: float) -> float:
+    """The latest checkpoint's evaluation error over the best's: 1 where both are 0 (a docking task's
+    policies that dock every episode), infinite where only the best's is."""
+    if best > 0:
+        return latest / best
+    return 1.0 if latest == 0 else math.inf
 
 
 def aggregate(rows: list[dict[str, Any]], target: float) -> dict[str, Any]:

@@ -62,12 +62,16 @@ class Config:
     # reads raw observations, and its first update re-normalises them with that rollout's statistics
     # before the policy update, whose importance ratios then compare two different policies (its
     # logged KL 0.7-1.7 over the first 0.5 M steps of the torpedo's path runs, 0.01-0.02 after).
+    # With `init_from`: the statistics of the observation fields its source lacks (`widen_inputs`).
     normalizer_warmup: int = 0
     # A run directory, a checkpoint inside one, or the env name of a shipped policy (e.g.
     # "Remus100-CircleFollowing") whose best checkpoint starts this run: its observation normalizer,
     # policy and value networks; the optimizer and the step count start anew (a curriculum: the REMUS
-    # 100's helix, lemniscate and waypoints start from its circle policy). Its observations and actions must have this
-    # env's sizes and mean the same, and its networks this config's sizes and symmetry. "": from scratch.
+    # 100's helix, lemniscate, waypoints and docking start from its circle policy). Its actions must
+    # be this env's and mean the same, its networks have this config's sizes and symmetry, and its
+    # observation fields be among this env's, with their sizes: fields this env adds (the docking's
+    # `dock`) enter with first-layer weights 0, so the run starts from the source's policy, and
+    # normalizer statistics from `normalizer_warmup` steps, which must then be > 0. "": from scratch.
     init_from: str = ""
     # The exploration noise. Brax's policy is a tanh-normal whose std (before the tanh) is an output
     # of the policy network, softplus(x) + 0.001 (about 0.69 at initialisation), and ignores Brax's own
@@ -124,8 +128,6 @@ class Config:
             raise UserError("ppo 'normalizer_warmup' needs normalize_observations = true")
         if not isinstance(self.init_from, str):
             raise UserError(f"ppo 'init_from' must be a run directory, a checkpoint or a shipped policy's env name, got {self.init_from!r}")
-        if self.init_from and self.normalizer_warmup:
-            raise UserError("ppo 'init_from' and 'normalizer_warmup' exclude each other (the run starts from its checkpoint's normalizer)")
         if not self.desired_kl > 0:
             raise UserError(f"ppo 'desired_kl' must be > 0, got {self.desired_kl}")
         for name in ("init_noise_std", "max_noise_std"):
@@ -365,7 +367,7 @@ def initial_params(env, config: Config, seed: int):
     from brax.training.acme import running_statistics
 
     if config.init_from:
-        return from_checkpoint(env, config)
+        return from_checkpoint(env, config, seed)
     if not config.normalizer_warmup:
         return None
     normalizer = warmup_normalizer(env, config, seed)
@@ -375,24 +377,90 @@ def initial_params(env, config: Config, seed: int):
     return normalizer, networks.policy_network.init(key_policy), networks.value_network.init(key_value)
 
 
-def from_checkpoint(env, config: Config):
+def from_checkpoint(env, config: Config, seed: int = 0):
     """The params (normalizer, policy, value) of `config.init_from`'s best checkpoint, checked against
-    `env` and `config`: a PPO run with the same observation and action sizes, network sizes and
-    mirror symmetry (UserError naming the difference)."""
+    `env` and `config`: a PPO run with the same action size, network sizes and mirror symmetry, and
+    observation fields that this env's include (UserError naming the difference); widened to this
+    env's observation by `widen_inputs` where it has more fields."""
     from marinejax.train.checkpoints import load_params  # the checkpoint layer reads the algorithms' configs
 
     source, source_env, params, ckpt = load_params(config.init_from)
     if source.algorithm != "ppo":
         raise UserError(f"ppo 'init_from' {config.init_from!r} is a {source.algorithm.upper()} run; a PPO run starts from a PPO checkpoint")
-    mine = (env.observation_size, env.action_size, tuple(config.policy_hidden), tuple(config.value_hidden), config.mirror_symmetric)
-    theirs = (source_env.observation_size, source_env.action_size, tuple(source.agent.policy_hidden),
-              tuple(source.agent.value_hidden), source.agent.mirror_symmetric)
-    names = ("observation size", "action size", "policy_hidden", "value_hidden", "mirror_symmetric")
+    mine = (env.action_size, tuple(config.policy_hidden), tuple(config.value_hidden), config.mirror_symmetric)
+    theirs = (source_env.action_size, tuple(source.agent.policy_hidden), tuple(source.agent.value_hidden), source.agent.mirror_symmetric)
+    names = ("action size", "policy_hidden", "value_hidden", "mirror_symmetric")
     for name, a, b in zip(names, mine, theirs):
         if a != b:
             raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) has {name} {b}, this run {a} "
                             "(--ppo init_from= trains from scratch)")
-    return params
+    rows = input_rows(source_env, env, f"ppo 'init_from' {config.init_from!r} ({ckpt})")
+    if rows is None:
+        if config.normalizer_warmup:
+            raise UserError(f"ppo 'normalizer_warmup' {config.normalizer_warmup} has nothing to warm: 'init_from' "
+                            f"{config.init_from!r} ({ckpt}) has this env's observation fields and its normalizer (set it to 0)")
+        return params
+    if not config.normalizer_warmup:
+        new = [name for name, s in env.observation_fields().items() if (rows[s] < 0).all()]
+        raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) lacks this env's observation fields {new}: set "
+                        "--ppo normalizer_warmup=N, the random-action steps whose observations give their normalizer statistics")
+    return widen_inputs(params, rows, warmup_normalizer(env, config, seed))
+
+
+def input_rows(source_env, env, what: str):
+    """Per component of `env`'s observation, the component of `source_env`'s observation holding the
+    same field (−1 for a field the source lacks), or None where the two layouts are the same. Every
+    source field must be in `env` with its size, else a UserError naming them."""
+    import numpy as np
+
+    sizes = (source_env.observation_size, env.observation_size)
+    if any(isinstance(size, dict) for size in sizes):  # a privileged observation: its own layout, not mapped by field
+        if sizes[0] != sizes[1]:
+            raise UserError(f"{what} has observation size {sizes[0]}, this run {sizes[1]} (--ppo init_from= trains from scratch)")
+        return None
+    theirs, mine = source_env.observation_fields(), env.observation_fields()
+    missing = [name for name in theirs if name not in mine]
+    resized = [name for name, s in theirs.items() if name in mine and s.stop - s.start != mine[name].stop - mine[name].start]
+    if missing or resized:
+        raise UserError(f"{what} has observation size {sizes[0]}, this run {sizes[1]}: this env lacks its fields {missing}"
+                        f"{f' and sizes differently {resized}' if resized else ''} (--ppo init_from= trains from scratch)")
+    rows = np.full(env.observation_size, -1)
+    for name, s in theirs.items():
+        rows[mine[name]] = np.arange(s.start, s.stop)
+    return None if np.array_equal(rows, np.arange(sizes[0])) else rows
+
+
+def widen_inputs(params, rows, warm):
+    """`params` (normalizer, policy, value) of a source observation laid out again by `rows`
+    (`input_rows`): each component's normalizer statistics and first-layer weights from the source
+    component it holds, and for the fields the source lacks (rows −1) first-layer weights 0, so that
+    the networks compute the source's functions, and the mean and std of the warm-up normalizer
+    `warm` (their summed variance scaled to the source's count, as if the source had seen them)."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    normalizer, policy, value = params
+    new = rows < 0
+    take = np.maximum(rows, 0)
+    count = float(int(normalizer.count.hi) * 2**32 + int(normalizer.count.lo))
+    warm_count = float(int(warm.count.hi) * 2**32 + int(warm.count.lo))
+
+    def merge(source, fresh):
+        source = np.asarray(source)
+        return jnp.asarray(np.where(new, np.asarray(fresh), source[take]), source.dtype)
+
+    normalizer = normalizer.replace(mean=merge(normalizer.mean, warm.mean), std=merge(normalizer.std, warm.std),
+                                    summed_variance=merge(normalizer.summed_variance, np.asarray(warm.summed_variance) * count / warm_count))
+
+    def first_layer(network):
+        layers = network["params"]
+        if "hidden_0" not in layers:
+            raise ValueError(f"a Brax MLP's first layer is 'hidden_0'; these params have {sorted(layers)}")
+        kernel = np.asarray(layers["hidden_0"]["kernel"])
+        widened = jnp.asarray(np.where(new[:, None], 0.0, kernel[take]), kernel.dtype)
+        return {**network, "params": {**layers, "hidden_0": {**layers["hidden_0"], "kernel": widened}}}
+
+    return normalizer, first_layer(policy), first_layer(value)
 
 
 def save(path: Path, step: int, params, env, config: Config) -> None:
