@@ -215,7 +215,7 @@ def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_p
 
 
 def test_latest_over_best_where_the_best_policy_makes_no_error():
-    # a docking task whose policies dock every evaluation episode: error 0, which a ratio divided by
+    # a docking task's policies that dock every evaluation episode have error 0: no ratio to divide
     from marinejax.benchmarks.training import latest_over_best
 
     assert latest_over_best(0.2, 0.1) == pytest.approx(2.0)

@@ -125,7 +125,7 @@ def test_init_from_something_that_is_not_a_run_lists_the_shipped_policies(tmp_pa
         ppo.initial_params(mj.make(ENV), ppo.Config(init_from=str(tmp_path / "nowhere")), seed=0)
 
 
-def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_value(monkeypatch):
+def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_value():
     # the shipped circle policy on the torpedo's docking, whose observation adds the `dock` field
     # (the latch point from the nose) amid the circle's: the widened networks compute the source's
     # functions of the fields they share, whatever the new field holds, and the new field's

@@ -377,7 +377,7 @@ def initial_params(env, config: Config, seed: int):
     return normalizer, networks.policy_network.init(key_policy), networks.value_network.init(key_value)
 
 
-def from_checkpoint(env, config: Config, seed: int = 0):
+def from_checkpoint(env, config: Config, seed: int):
     """The params (normalizer, policy, value) of `config.init_from`'s best checkpoint, checked against
     `env` and `config`: a PPO run with the same action size, network sizes and mirror symmetry, and
     observation fields that this env's include (UserError naming the difference); widened to this
@@ -442,15 +442,14 @@ def widen_inputs(params, rows, warm):
     normalizer, policy, value = params
     new = rows < 0
     take = np.maximum(rows, 0)
-    count = float(int(normalizer.count.hi) * 2**32 + int(normalizer.count.lo))
-    warm_count = float(int(warm.count.hi) * 2**32 + int(warm.count.lo))
+    count = lambda state: float(int(state.count.hi) * 2**32 + int(state.count.lo))  # noqa: E731  Brax's UInt64 count
 
     def merge(source, fresh):
         source = np.asarray(source)
         return jnp.asarray(np.where(new, np.asarray(fresh), source[take]), source.dtype)
 
     normalizer = normalizer.replace(mean=merge(normalizer.mean, warm.mean), std=merge(normalizer.std, warm.std),
-                                    summed_variance=merge(normalizer.summed_variance, np.asarray(warm.summed_variance) * count / warm_count))
+                                    summed_variance=merge(normalizer.summed_variance, np.asarray(warm.summed_variance) * count(normalizer) / count(warm)))
 
     def first_layer(network):
         layers = network["params"]
