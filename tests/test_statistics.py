@@ -28,3 +28,17 @@ def test_a_task_without_a_heading_bound_succeeds_on_the_position_alone():
     assert env.success_heading_deg is None
     stats = summarize(env, _episodes(env, [0.01, 0.2], [90.0, 0.0]))
     assert stats["success_rate"] == 0.5 and stats["success_heading_deg"] is None
+
+
+def test_rov_docking_succeeds_when_docked_at_the_end_whatever_its_position_error():
+    env = marinejax.make("BlueROV2Heavy-Docking")
+    assert env.success_flag == "docked"
+    result = _episodes(env, [0.08, 0.01, 0.01], [0.0, 0.0, 0.0])
+    steps = env.config.episode_length
+    docked = np.zeros((3, steps))
+    docked[0, -30:] = 1.0  # docked 8 cm before the landing point (inside the station): a success
+    docked[2, 100:-1] = 1.0  # docked, then out on the last step: not
+    other = np.zeros((3, steps))
+    result.update(docked=docked, impact_force=other, lateral_error=other)
+    stats = summarize(env, result)
+    assert stats["success_rate"] == pytest.approx(1 / 3) and stats["success_flag"] == "docked"

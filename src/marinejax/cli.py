@@ -190,8 +190,9 @@ def _print_eval(console, result: dict[str, Any]) -> None:
     console.print(
         f"{result['env']}: {result['episodes']} episodes, position error ({result['window']}): "
         f"mean {result['position_error_mean_m']:.4f} m, median {result['position_error_median_m']:.4f} m, "
-        f"95th percentile {result['position_error_p95_m']:.4f} m; success rate (< {result['success_threshold_m']} m"
-        + (f" and < {result['success_heading_deg']:g}°" if result.get("success_heading_deg") is not None else "") + ") "
+        f"95th percentile {result['position_error_p95_m']:.4f} m; success rate ("
+        + (f"{result['success_flag']} at the end" if result.get("success_flag") else f"< {result['success_threshold_m']} m"
+           + (f" and < {result['success_heading_deg']:g}°" if result.get("success_heading_deg") is not None else "")) + ") "
         f"{100 * result['success_rate']:.0f} %"
     )
     others = [f"{key.replace('_mean', '').removesuffix('_deg').replace('_', ' ')} "

@@ -3,7 +3,8 @@
 Per episode, the mean position error over the task's evaluation window (last second of station
 keeping, after the first 2 s of tracking, once the reference has ramped up); over episodes, the
 mean, median and 95th percentile, and the success rate (that per-episode error below the task's
-`success_threshold_m`, and where the task sets `success_heading_deg` its mean heading error below that).
+`success_threshold_m`, and where the task sets `success_heading_deg` its mean heading error below that;
+or, where the task sets `success_flag`, that error's value at the episode's last step).
 """
 
 from __future__ import annotations
@@ -67,9 +68,12 @@ def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
     mask = np.asarray(env.error_window(result["time"]))
     per_episode = result["error"][:, mask].mean(axis=1)
     ended = result["done"].max(axis=1) > 0
-    success = (per_episode < success_m) & ~ended
-    if env.success_heading_deg is not None:
-        success &= result["heading_error_deg"][:, mask].mean(axis=1) < env.success_heading_deg
+    if env.success_flag is not None:
+        success = (result[env.success_flag][:, -1] > 0) & ~ended
+    else:
+        success = (per_episode < success_m) & ~ended
+        if env.success_heading_deg is not None:
+            success &= result["heading_error_deg"][:, mask].mean(axis=1) < env.success_heading_deg
     others = {_mean_name(name): float(result[name][:, mask].mean()) for name in env.error_names if name != "position_error"}
     return {
         "episodes": int(per_episode.size),
@@ -81,6 +85,7 @@ def summarize(env: MarineEnv, result: dict[str, np.ndarray]) -> dict[str, Any]:
         "success_rate": float(np.mean(success)),
         "success_threshold_m": success_m,
         "success_heading_deg": env.success_heading_deg,
+        "success_flag": env.success_flag,
         "terminated_episodes": int(ended.sum()),
         "units": {name: env.error_units[error] for error, name in zip(env.error_names, map(_mean_name, env.error_names))
                   if name in others},

@@ -70,3 +70,70 @@ def test_a_pilot_that_aligns_first_docks_gently_and_one_that_rams_is_counted():
 def test_docking_needs_a_scene_with_contacts():
     with pytest.raises(UserError, match="needs a scene with contacts"):
         mj.make("BlueROV2-Docking", scene="open_water")
+
+
+def _at(position, yaw=0.0):
+    from marinejax.physics import VehicleState
+
+    return VehicleState(position=jnp.asarray(position, jnp.float32), quaternion=mj.frames.quat_from_euler(0.0, 0.0, yaw),
+                        velocity=jnp.zeros(3), angular_velocity=jnp.zeros(3), actuators=jnp.zeros(ENV.vehicle.num_actuators))
+
+
+def test_the_guide_advances_at_its_speed_slows_to_the_landing_point_and_waits_until_the_vehicle_is_lined_up():
+    c = ENV.config
+    dt = c.control_dt
+    task = ENV._sample_task(jax.random.PRNGKey(0))
+    # it starts at the start's projection on the axis, at most approach_distance in front
+    assert float(ENV.fit_task(None, task, None, None, _at([-3.0, 2.0, 0.5])).guide) == pytest.approx(-3.0)
+    assert float(ENV.fit_task(None, task, None, None, _at([-0.8, 2.0, 0.5])).guide) == pytest.approx(-c.approach_distance)
+    step = lambda guide, *pose: float(ENV._next_guide(_at(*pose), task.replace(guide=jnp.float32(guide))))  # noqa: E731
+    # far out, lined up: approach_speed; near the landing point guide_gain × the distance to its stop,
+    # standoff in front of the landing point (a vehicle left behind the stop is led back to it)
+    assert step(-3.0, [-3.0, 0.0, 0.0]) == pytest.approx(-3.0 + c.approach_speed * dt, abs=1e-6)
+    assert step(-0.2, [-0.25, 0.01, 0.0]) == pytest.approx(-0.2 + c.guide_gain * (0.2 - c.standoff) * dt, abs=1e-6)
+    assert step(-c.standoff, [-0.01, 0.0, 0.0]) == pytest.approx(-c.standoff)
+    assert step(0.0, [0.01, 0.0, 0.0]) == pytest.approx(-c.standoff)
+    # never more than guide_lead ahead of the vehicle (one left behind pulls it back)
+    assert step(-1.0, [-2.0, 0.0, 0.0]) == pytest.approx(-2.0 + c.guide_lead, abs=1e-6)
+    # beyond align_limit, sideways or by heading (0.5 rad × 0.3 m/rad), it waits approach_distance in
+    # front (and leads a misaligned vehicle back out); halfway between the limits, halfway out
+    assert step(-0.3, [-0.6, 0.2, 0.0]) == pytest.approx(-c.approach_distance, abs=1e-6)
+    assert step(-0.3, [-0.6, 0.0, 0.0], 0.5) == pytest.approx(-c.approach_distance, abs=1e-6)
+    assert step(-0.3, [-0.6, 0.0, 0.1]) == pytest.approx(-0.5 * c.approach_distance, abs=1e-5)
+    np.testing.assert_allclose(np.asarray(ENV.guide(task.replace(guide=jnp.float32(-0.7)))), [-0.7, 0.0, 0.0])
+    # the route through the guide: the straight distance on the axis, longer off it
+    assert float(ENV.route_distance(_at([-2.0, 0.0, 0.0]), task.replace(guide=jnp.float32(-1.5)))) == pytest.approx(2.0, abs=1e-6)
+    off = float(ENV.route_distance(_at([-0.6, 0.2, 0.0]), task.replace(guide=jnp.float32(-1.2))))
+    assert off == pytest.approx(np.hypot(0.6, 0.2) + 1.2, abs=1e-5)
+
+
+def test_the_observation_steers_to_the_guide_and_sees_the_landing_point():
+    state = ENV.reset(jax.random.PRNGKey(3))
+    vs = ENV.plant.vehicle_state(state.pipeline_state)
+    fields = ENV.observation_fields()
+    rot = np.asarray(quat_to_mat(vs.quaternion))
+    guide = np.asarray(ENV.guide(state.info["task"]))
+    np.testing.assert_allclose(np.asarray(state.obs[fields["position_error"]]), rot.T @ (guide - np.asarray(vs.position)), atol=1e-5)
+    np.testing.assert_allclose(np.asarray(state.obs[fields["dock"]]), rot.T @ -np.asarray(vs.position), atol=1e-5)
+    assert fields["dock"].stop == fields["integral_position"].start  # the task's fields, then the integral
+
+
+def test_the_pid_flying_to_the_guide_docks_without_touching_the_station():
+    from marinejax.controllers import pid_controller
+    from marinejax.statistics import rollout_controller, summarize
+
+    env = mj.make("BlueROV2Heavy-Docking")
+    result = rollout_controller(env, pid_controller(env), episodes=4, seed=12345)
+    assert summarize(env, result)["success_rate"] == 1.0  # docked, held 1 s, at the end of every episode
+    assert result["impact_force"].max() == 0.0
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"standoff": 0.1}, "config 'standoff' (0.1 m) must be below 'dock_inside' (0.1 m)"),
+    ({"align_limit": 0.05}, "config 'align_limit' (0.05 m) must be above 'align_tolerance' (0.05 m)"),
+])
+def test_a_guide_that_could_not_dock_is_refused(overrides, message):
+    import re
+
+    with pytest.raises(UserError, match=re.escape(message)):
+        mj.make("BlueROV2Heavy-Docking", **overrides)

@@ -86,15 +86,17 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
 def test_every_recipe_that_starts_from_a_policy_fits_it():
     # the REMUS's curved paths and waypoints, every disturbed path and its docking start from its
     # circle policy, its disturbed autopilot from its autopilot policy; the four-fin variant (another
-    # action size) trains from scratch
+    # action size) trains from scratch; each ROV's docking starts from its station keeping
     import dataclasses
 
     from marinejax.train.hyperparams import tuned_config
 
     starting = {name: tuned_config(name).ppo for name in mj.list_envs() if tuned_config(name).ppo.init_from}
     paths_ = {f"Remus100-{p}Following" for p in ("Helix", "Lemniscate", "Waypoint")} | {"Remus100-Docking"}
-    assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}}
+    rovs = {f"{v}-Docking{d}" for v in ("BlueROV2", "BlueROV2Heavy") for d in ("", "Disturbed")}
+    assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}} | rovs
     assert starting["Remus100-AutopilotDisturbed"].init_from == "Remus100-Autopilot"
+    assert starting["BlueROV2-DockingDisturbed"].init_from == "BlueROV2-StationKeepingDisturbed"
     for name, config in starting.items():
         # the docking's warm-up for its new field, on fewer envs and steps: what is checked is the fit
         config = dataclasses.replace(config, num_envs=8, normalizer_warmup=min(config.normalizer_warmup, 2))

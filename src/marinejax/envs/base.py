@@ -100,7 +100,7 @@ class RewardConfig:
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
     gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle;
     proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond;
-    docked (torpedo docking): 1 on the step the latch closes.
+    docked (docking): the torpedo's 1 on the step the latch closes, the ROV's 1 on every step docked.
     """
 
     position: float = 2.0
@@ -145,7 +145,8 @@ OBSERVATION_FIELDS = {
     "angular_velocity": ("rad/s", "body", "angular velocity"),
     "actuators": ("1", "-", "actuator states, each scaled to [-1, 1] by its command range"),
     "last_action": ("1", "-", "the previous action, in [-1, 1]"),
-    "dock": ("m", "body", "the dock's latch point (its tube's entrance on the axis) minus the vehicle's nose"),
+    "dock": ("m", "body", "the dock's latch point (its tube's entrance on the axis) minus the torpedo's nose; "
+                          "the ROV station's landing point minus the CG"),
     "integral_position": ("m s", "body", "leaky integral of the position error"),
     "integral_heading": ("rad s", "-", "leaky integral of the heading error"),
     **SCENE_SENSOR_FIELDS,
@@ -205,6 +206,9 @@ class MarineEnv(Env):
     success_threshold_m = 0.1  # m: an episode succeeds when its mean error over the window is below this
     # °: where set, an episode succeeds only if its mean heading error over the window is also below this
     success_heading_deg: float | None = None
+    # where set, the name of an error (1 or 0) whose value at an episode's last step is its success,
+    # instead of the thresholds above (a task with its own criterion, e.g. `docked`)
+    success_flag: str | None = None
 
     def __init__(self, vehicle: str | Vehicle, config: EnvConfig):
         self.config = config
