@@ -94,6 +94,10 @@ def _train(args: argparse.Namespace) -> int:
     console = make_console()
     target = _check_target(args.target_error)
     _initialize_processes(args)  # before anything starts JAX's backend
+    if args.wandb is not None:
+        from marinejax.train import wandb_log
+
+        wandb_log.check(args.wandb)
     if args.resume:
         if args.env_name or args.ppo or args.algo or args.algo_opts or args.env or args.timesteps or args.run_dir or args.randomize:
             raise UserError("--resume takes only the run directory: the run's own settings are reused")
@@ -139,7 +143,7 @@ def _train(args: argparse.Namespace) -> int:
         try:
             summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
                             target_error=target, devices=args.devices,
-                            trace_cache=None if args.no_compile_cache else trace_cache_dir())
+                            trace_cache=None if args.no_compile_cache else trace_cache_dir(), wandb_project=args.wandb)
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
@@ -368,6 +372,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--episodes", type=int, default=64, help="episodes of the final evaluation (default 64)")
     tr.add_argument("--no-eval", action="store_true", help="skip the final evaluation")
     tr.add_argument("--no-video", action="store_true", help="skip the video of the final evaluation")
+    tr.add_argument("--wandb", metavar="PROJECT", help="also log every evaluation to this Weights & Biases project "
+                    "(needs `pip install wandb`; a resumed run continues its W&B run)")
 
     ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory, checkpoint or classical controller: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")

@@ -40,7 +40,8 @@ def _episodes(keys, ram):
 
         def body(s, _):
             s = ENV.step(s, _pilot(ram)(s))
-            return s, (s.metrics["docked"], s.metrics["impact_force"], s.metrics["reward/impact"])
+            return s, (s.metrics["docked"], s.metrics["impact_force"], s.metrics["reward/impact"], s.metrics["reward/docked"],
+                       s.info["task"].hold)
 
         return start, jax.lax.scan(body, state, None, length=ENV.config.episode_length)[1]
 
@@ -59,10 +60,17 @@ def test_episodes_start_at_rest_in_front_of_the_station_at_the_configured_distan
 
 def test_a_pilot_that_aligns_first_docks_gently_and_one_that_rams_is_counted():
     keys = jax.random.split(jax.random.PRNGKey(0), 2)
-    _, (docked, impact, reward) = _episodes(keys, False)
+    _, (docked, impact, reward, reward_docked, hold) = _episodes(keys, False)
     assert np.all(np.asarray(docked[:, -1]) == 1.0)  # docked, held for 1 s, at the end of every episode
     assert float(impact.max()) < ENV.config.impact_threshold and float(reward.min()) == 0.0
-    _, (docked, impact, reward) = _episodes(keys, True)
+    # the docked term: the time held without a break over dock_hold, at most 1 (weight 1)
+    c = ENV.config
+    assert c.reward.docked == 1.0
+    np.testing.assert_allclose(np.asarray(reward_docked), np.minimum(np.asarray(hold) / c.dock_hold, 1.0), atol=1e-6)
+    ramp = np.asarray(reward_docked[0])
+    first = int(np.argmax(ramp > 0))  # the first docked step earns one step's share, a held one 1
+    assert ramp[first] == pytest.approx(c.control_dt / c.dock_hold) and ramp[-1] == 1.0
+    _, (docked, impact, reward, _, _) = _episodes(keys, True)
     assert float(impact.max()) > 2 * ENV.config.impact_threshold  # 80 N into the back bars
     assert float(reward.min()) < -1.0
 

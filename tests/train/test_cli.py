@@ -3,6 +3,7 @@ mistakes (several devices and processes: test_cli_hosts.py)."""
 
 import json
 import math
+import os
 import re
 import shutil
 from pathlib import Path
@@ -11,13 +12,21 @@ import numpy as np
 import pytest
 from cli_runner import CACHE_HOME, TINY, TRACED, marinejax, traced
 
+# --wandb through a stand-in for the wandb package that records its calls (fake_wandb/)
+FAKE_WANDB = {"PYTHONPATH": os.pathsep.join([str(Path(__file__).parent / "fake_wandb"), *filter(None, [os.environ.get("PYTHONPATH")])])}
+
+
+def wandb_calls(run: Path) -> list[dict]:
+    return [json.loads(line) for line in (run / "fake_wandb.jsonl").read_text().splitlines()]
+
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
     run = tmp_path_factory.mktemp("runs") / "sk"
     # a relative run directory, as users type it; the linear learning-rate schedule, through Brax's
     # optimizer here and in the resumed run (test_learning_rate.py checks its values)
     proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", "sk", *TINY, "--ppo", "learning_rate_schedule=linear",
-                     cwd=run.parent)
+                     "--wandb", "marinejax-test", cwd=run.parent, extra_env=FAKE_WANDB)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run.parent / "train.stdout").write_text(proc.stdout)
     return run
@@ -61,6 +70,13 @@ def test_train_writes_a_complete_run_directory(run_dir):
     logged = sorted((step, value) for step, tag, value in scalars if tag == "eval/episode_window_error")
     assert [step for step, _ in logged] == [r["step"] for r in records]
     np.testing.assert_allclose([v for _, v in logged], [r["eval/episode_window_error"] for r in records], rtol=1e-6)
+    # and to W&B (--wandb): one run named after the run directory, its id kept there, the same records
+    calls = wandb_calls(run_dir)
+    assert calls[0] == {"call": "init", "project": "marinejax-test", "name": "sk", "id": (run_dir / "wandb_id.txt").read_text().strip(),
+                        "resume": "allow", "env": "BlueROV2Heavy-StationKeeping"}
+    assert calls[-1] == {"call": "finish"} and [c["call"] for c in calls[1:-1]] == ["log"] * len(records)
+    assert [c["step"] for c in calls[1:-1]] == [r["step"] for r in records]
+    assert [c["data"] for c in calls[1:-1]] == [{k: v for k, v in r.items() if k != "step"} for r in records]
 
 
 @pytest.mark.slow
@@ -102,12 +118,17 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
     shutil.rmtree(newest)  # as if training had stopped before its last checkpoint
     kept = int(sorted((run / "checkpoints").iterdir())[-1].name)
     before = traced()
-    proc = marinejax("train", "--resume", str(run), "--episodes", "2", "--no-video")
+    logged_before = len(wandb_calls(run))
+    proc = marinejax("train", "--resume", str(run), "--episodes", "2", "--no-video", "--wandb", "marinejax-test", extra_env=FAKE_WANDB)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert traced() == before != {}  # this second process loaded the first one's traced env functions
     records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     steps = [r["step"] for r in records]
     assert steps == sorted(steps) and steps[-1] >= 1600 and kept in steps
+    # the same W&B run goes on from the checkpoint's step
+    calls = wandb_calls(run)[logged_before:]
+    assert calls[0]["call"] == "init" and calls[0]["id"] == wandb_calls(run)[0]["id"]
+    assert [c["step"] for c in calls if c["call"] == "log"] == [s for s in steps if s > kept] and calls[-1] == {"call": "finish"}
     assert int(sorted((run / "checkpoints").iterdir())[-1].name) >= 1600
 
 
@@ -127,6 +148,7 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "num_envs"], "--ppo expects KEY=VALUE"),
         (["eval", "/no/such/run"], "no such run directory or checkpoint"),
         (["train", "--resume", "/no/such/run"], "is not a run directory"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--wandb", "team/project"], "'team/project' is not a W&B project name"),
         (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "-0.01"], "--target-error must be a positive"),
         (["train", "BlueROV2Heavy-StationKeeping", "--target-error", "nan"], "--target-error must be a positive"),
         (["eval", "BlueROV2Heavy-StationKeeping", "--checkpoint", "first"], "invalid choice: 'first'"),

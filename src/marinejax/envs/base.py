@@ -100,7 +100,8 @@ class RewardConfig:
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
     gained over the step / dt); collision (the same): −1 on the step the vehicle hits an obstacle;
     proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond;
-    docked (docking): the torpedo's 1 on the step the latch closes, the ROV's 1 on every step docked.
+    docked (docking): the torpedo's 1 on the step the latch closes, the ROV's the time docked without a
+    break over the time it must hold, at most 1.
     """
 
     position: float = 2.0

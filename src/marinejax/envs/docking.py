@@ -14,8 +14,10 @@ landing point along its axis), within `dock_tolerance` m of it sideways and vert
 within `dock_heading` degrees, speed below `dock_speed` m/s, all held for `dock_hold` s. Contacts
 with the station are allowed; a contact force above `impact_threshold` N is an impact, penalized by
 the reward term `impact` (−(|F| − threshold)/threshold) and logged as `impact_force` (N). The reward
-term `docked` is 1 on every step that meets the docked conditions (held or not): an ROV should stay
-docked, and arriving early is no fault.
+term `docked` is how long the docked conditions have held, over `dock_hold` and capped at 1: paid
+on every step from arrival on (an ROV should stay docked, and arriving early is no fault), but only
+while the conditions hold without a break, so that a vehicle rocking in place whose speed exceeds
+`dock_speed` a few steps a cycle earns little of it.
 
 Guidance: the pose the observation and the reward steer to is a guide point on the station's axis,
 not the landing point itself, so that the vehicle lines up in front of the opening before it enters
@@ -200,7 +202,7 @@ class Docking(StationKeeping):
             "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
             "precision": jnp.exp(-d / r.precision_scale),
             "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold,
-            "docked": self._docked_now(vs, task).astype(jnp.float32),
+            "docked": jnp.minimum(task.hold / self.config.dock_hold, 1.0),
         }
 
 

@@ -34,6 +34,9 @@ and `time_to_dock` (s since the start) are live on the way in and keep their val
 `cross_track_error` is the CG's distance from the approach line (0 once latched); `impact_force` (N)
 is the step's contact force (0 once latched).
 
+Reward: path following's terms, the position and precision terms on the nose's distance from the
+dock's axis (the approach line) rather than the CG's, plus `impact` and `docked`.
+
 Observation: path following's (`path_following`: the closest point of the line, the line ahead, the
 tangent, the commanded speed and its error, attitude, velocities, actuators, last action), then
 `dock`: the latch point minus the nose (m, body frame), then the integral of the cross-track error.
@@ -106,6 +109,9 @@ class TorpedoDocking(PathFollowing):
                                           "time_to_dock": "s", "cross_track_error": "m", "impact_force": "N", "docked": ""})
     error_window_description = "the last second"
     success_threshold_m = 0.1
+    # latched by the episode's end: the same episodes as a position error below success_threshold_m
+    # over the last second (0 once latched), said as what it is
+    success_flag = "docked"
 
     def __init__(self, vehicle, config: TorpedoDockingConfig):
         super().__init__(vehicle, config, kind="lines")
@@ -180,8 +186,13 @@ class TorpedoDocking(PathFollowing):
     def reward_terms(self, vs: VehicleState, info, action):
         task: DockApproachTask = info["task"]
         threshold = self.config.impact_threshold
-        terms = {**super().reward_terms(vs, info, action), "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold,
-                 "docked": task.latched}
+        r = self.config.reward
+        # the position terms on the nose's distance from the axis, not the CG's: crabbing into a cross
+        # current with the CG on the line puts the nose 0.8 m · sin(crab angle) off it, outside the tube
+        d = jnp.linalg.norm(self.nose(vs)[1:])
+        terms = {**super().reward_terms(vs, info, action), "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
+                 "precision": jnp.exp(-d / r.precision_scale),
+                 "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold, "docked": task.latched}
         # latched: the best value of every term (1 for the bounded ones, 0 for the penalties), the bonus unchanged
         best = {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0, "docked": task.latched}
         return {k: jnp.where(task.docked > 0, best.get(k, 0.0), v) for k, v in terms.items()}

@@ -9,6 +9,7 @@ Run directory layout:
   curve.png          learning curve (return and position error vs env steps and wall time)
   summary.json       written when training ends (or is interrupted)
   tensorboard/       every evaluation's metrics as TensorBoard scalars (`tensorboard --logdir runs`)
+  wandb_id.txt, wandb/  with --wandb: the Weights & Biases run's id and W&B's own files (`wandb_log`)
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
 from marinejax.train.curves import WINDOW_ERROR
+from marinejax.train import wandb_log
 from marinejax.train.hyperparams import PPOConfig, SACConfig, TrainConfig, build_env
 
 TENSORBOARD = "tensorboard"  # the run directory's TensorBoard event files
@@ -128,6 +130,7 @@ def train(
     stop_at_target: bool = True,
     devices: int | None = None,
     trace_cache: Path | None = None,
+    wandb_project: str | None = None,
 ) -> dict[str, Any]:
     """Train `config` into `run_dir`; resume from its newest checkpoint when `resume`.
 
@@ -151,6 +154,8 @@ def train(
     evaluates and writes the run directory (the others return a summary without evaluations). The
     trace cache is then not used (the processes would write the same files), and training does not
     stop at `target_error` (Brax cannot stop the other processes with process 0).
+
+    `wandb_project`: also log every evaluation to Weights & Biases (`wandb_log`), from process 0.
     """
     run_dir = Path(run_dir).resolve()  # orbax needs absolute paths
     lead = jax.process_index() == 0
@@ -191,6 +196,8 @@ def train(
     # a resumed run drops the events after its checkpoint, as metrics.jsonl does (Brax reports
     # evaluations to process 0 only)
     board = SummaryWriter(str(run_dir / TENSORBOARD), purge_step=steps_done if resume else None) if lead else None
+    wandb_run = (wandb_log.start(wandb_project, run_dir, json.loads((run_dir / "config.json").read_text()), resume)
+                 if wandb_project and lead else None)
 
     def progress(step: int, metrics: dict[str, Any]) -> None:
         if step == 0 and steps_done > 0:
@@ -203,6 +210,8 @@ def train(
             if key != "step":
                 board.add_scalar(key, value, record["step"])
         board.flush()
+        if wandb_run is not None:
+            wandb_log.log(wandb_run, record)
         nonlocal best
         err = record.get(WINDOW_ERROR)
         if err is not None and record["step"] > 0 and (best is None or err < best["window_error"]):
@@ -230,6 +239,8 @@ def train(
     finally:
         if board is not None:
             board.close()
+        if wandb_run is not None:
+            wandb_run.finish()
     summary = {
         "status": status,
         "env": config.env,
