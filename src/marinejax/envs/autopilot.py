@@ -53,7 +53,7 @@ import numpy as np
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs.base import RewardConfig, heading_error
+from marinejax.envs.base import RewardConfig, distance_terms, heading_error
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
@@ -231,8 +231,7 @@ class Autopilot(CruisingEnv):
         terms = self._attitude_terms(vs, heading, action, info["last_action"])
         del terms["upright"]
         return {
-            "position": 1.0 / (1.0 + (e / r.position_scale) ** 2),
-            "precision": jnp.exp(-jnp.abs(e) / r.precision_scale),
+            **distance_terms(jnp.abs(e), r),
             "speed": jnp.exp(-jnp.abs(speed - vs.velocity[0]) / r.speed_scale),
             "speed_penalty": -jnp.abs(speed - vs.velocity[0]),
             "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, heading)) / r.heading_precision_scale),

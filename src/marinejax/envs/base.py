@@ -183,6 +183,12 @@ class EnvConfig(PlantConfig):
             check_range(f"reset.{name}", (0.0, getattr(self.reset, name)), low=0.0)
 
 
+def distance_terms(d: jnp.ndarray, reward: RewardConfig) -> dict[str, jnp.ndarray]:
+    """The reward terms of a distance d ≥ 0 (m) from where the task wants the vehicle: position
+    1/(1 + (d/position_scale)^2) and precision exp(−d/precision_scale), unweighted."""
+    return {"position": 1.0 / (1.0 + (d / reward.position_scale) ** 2), "precision": jnp.exp(-d / reward.precision_scale)}
+
+
 def heading_error(quat: jnp.ndarray, target_yaw: jnp.ndarray) -> jnp.ndarray:
     """Target yaw minus current yaw (rad), wrapped to (−π, π]."""
     yaw = quat_to_euler(quat)[2]

@@ -54,7 +54,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.config import check_nonnegative, check_range
-from marinejax.envs.base import EnvConfig, RewardConfig, heading_error
+from marinejax.envs.base import EnvConfig, RewardConfig, distance_terms, heading_error
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_mat
@@ -199,8 +199,7 @@ class Docking(StationKeeping):
         threshold = self.config.impact_threshold
         return {
             **super().reward_terms(vs, info, action),
-            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
-            "precision": jnp.exp(-d / r.precision_scale),
+            **distance_terms(d, r),
             "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold,
             "docked": jnp.minimum(task.hold / self.config.dock_hold, 1.0),
         }

@@ -39,7 +39,7 @@ import numpy as np
 from flax import struct
 
 from marinejax.config import check_nonnegative, check_range
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms
 from marinejax.errors import UserError
 from marinejax.frames import quat_from_euler, quat_to_mat
 from marinejax.physics import VehicleState
@@ -180,8 +180,7 @@ class ObstacleAvoidance(MarineEnv):
         d = task.distance
         gap = jnp.min(self.clearance(vs, info["params"].layout))
         return {
-            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
-            "precision": jnp.exp(-d / r.precision_scale),
+            **distance_terms(d, r),
             "progress": task.progress / self.config.control_dt,
             "collision": -(gap < 0).astype(jnp.float32),
             "proximity": -jnp.clip(1.0 - gap / self.config.proximity_range, 0.0, 1.0),

@@ -53,7 +53,7 @@ from flax import struct
 
 import marinejax.envs.paths as paths
 from marinejax.config import check_nonnegative
-from marinejax.envs.base import RewardConfig, heading_error
+from marinejax.envs.base import RewardConfig, distance_terms, heading_error
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
@@ -194,8 +194,7 @@ class PathFollowing(CruisingEnv):
         terms = self._attitude_terms(vs, task.yaw, action, info["last_action"])
         del terms["upright"]
         return {
-            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
-            "precision": jnp.exp(-d / r.precision_scale),
+            **distance_terms(d, r),
             "speed": jnp.exp(-jnp.abs(task.speed - task.along_speed) / r.speed_scale),
             "speed_penalty": -jnp.abs(task.speed - task.along_speed),
             **terms,

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, heading_error
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_error
 from marinejax.physics import VehicleState
 
 
@@ -78,8 +78,7 @@ class StationKeeping(MarineEnv):
         d = jnp.linalg.norm(task.position - vs.position)
         r = self.config.reward
         return {
-            "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
-            "precision": jnp.exp(-d / r.precision_scale),
+            **distance_terms(d, r),
             "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, task.yaw)) / r.heading_precision_scale),
             **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
         }

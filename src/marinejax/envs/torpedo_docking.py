@@ -53,7 +53,7 @@ from flax import struct
 
 import marinejax.envs.paths as paths
 from marinejax.config import check_nonnegative, check_range
-from marinejax.envs.base import RewardConfig, heading_error
+from marinejax.envs.base import RewardConfig, distance_terms, heading_error
 from marinejax.envs.docking import contact_force
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.errors import UserError
@@ -186,12 +186,10 @@ class TorpedoDocking(PathFollowing):
     def reward_terms(self, vs: VehicleState, info, action):
         task: DockApproachTask = info["task"]
         threshold = self.config.impact_threshold
-        r = self.config.reward
         # the position terms on the nose's distance from the axis, not the CG's: crabbing into a cross
         # current with the CG on the line puts the nose 0.8 m · sin(crab angle) off it, outside the tube
         d = jnp.linalg.norm(self.nose(vs)[1:])
-        terms = {**super().reward_terms(vs, info, action), "position": 1.0 / (1.0 + (d / r.position_scale) ** 2),
-                 "precision": jnp.exp(-d / r.precision_scale),
+        terms = {**super().reward_terms(vs, info, action), **distance_terms(d, self.config.reward),
                  "impact": -jnp.maximum(contact_force(info) - threshold, 0.0) / threshold, "docked": task.latched}
         # latched: the best value of every term (1 for the bounded ones, 0 for the penalties), the bonus unchanged
         best = {"position": 1.0, "precision": 1.0, "speed": 1.0, "heading": 1.0, "docked": task.latched}
