@@ -8,6 +8,7 @@ import pytest
 import marinejax as mj
 from marinejax.envs.base import heading_error
 from marinejax.errors import UserError
+from marinejax.frames import quat_from_euler, quat_to_mat
 
 
 @pytest.fixture(scope="module")
@@ -146,6 +147,24 @@ def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
     slow, fast = speed < 0.6, speed >= 1.0
     assert step[slow].max() < 0.15 * c.depth_step and step[fast].max() > 0.9 * c.depth_step
     assert turn[slow].max() < 0.37 * c.heading_step and turn[fast].max() > 0.9 * c.heading_step
+
+
+def test_the_progress_term_pays_the_rate_the_depth_error_shrinks(env):
+    """Nose 30° up at 1.2 m/s: the vehicle climbs at 0.6 m/s, which earns +0.6 under a set-point above
+    it, −0.6 under one below, whatever the heading."""
+    state = env.reset(jax.random.PRNGKey(0))
+    task, info = state.info["task"], state.info
+    vs = env.plant.vehicle_state(state.pipeline_state)
+    for pitch in (np.radians(30.0), -np.radians(30.0)):
+        q = quat_from_euler(0.0, pitch, 1.0)
+        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:  # the nose up
+            break
+    for offset, expected in ((2.0, 0.6), (-2.0, -0.6)):
+        here = vs.replace(position=jnp.array([0.0, 0.0, float(task.depth[0]) - offset]), quaternion=q,
+                          velocity=jnp.array([1.2, 0.0, 0.0]), angular_velocity=jnp.zeros(3))
+        terms = env.reward_terms(here, info, jnp.zeros(env.action_size))
+        assert float(terms["progress"]) == pytest.approx(expected, abs=1e-5)
+    assert env.config.reward.progress == 1.0
 
 
 def test_in_a_current_the_set_points_are_those_the_nominal_task_asks_at_the_slowest_speed_through_the_water():
