@@ -84,10 +84,11 @@ class AutopilotConfig(CruisingConfig):
     # depth error e; progress: the rate |e| shrinks, sign(e)·ż (m/s, ż the world vertical velocity),
     # which pays for climbing or diving towards the set-point at once instead of only once the depth
     # is reached (−d|e|/dt, so over a manoeuvre it sums to the error removed; seeds 0-4 of the recipe
-    # within 0.063 m with it, 3 of 5 within 0.10 m without; docs/results.md); heading: broad (1 + cos)/2 plus exp(−|error|/0.5 rad), which still has a slope at
-    # 90°; speed: exp(−|error|/0.5 m/s) plus a linear penalty, without which PPO cruises at full speed
-    # (the fins' authority) and ignores the speed set-point; no upright term (a torpedo pitches to
-    # change depth). Chosen on seed 0 (docs/results.md).
+    # within 0.063 m with it, 3 of 5 within 0.10 m without; docs/results.md); heading: broad
+    # (1 + cos)/2 plus exp(−|error|/0.5 rad), which still has a slope at 90°; speed: exp(−|error|/0.5
+    # m/s) plus a linear penalty, without which PPO cruises at full speed (the fins' authority) and
+    # ignores the speed set-point; no upright term (a torpedo pitches to change depth). Chosen on
+    # seed 0 (docs/results.md).
     reward: RewardConfig = RewardConfig(upright=0.0, heading=1.0, heading_precision=3.0, heading_precision_scale=0.5,
                                         speed=2.0, speed_scale=0.5, speed_penalty=1.0, progress=1.0)
 
