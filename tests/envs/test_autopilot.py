@@ -151,7 +151,7 @@ def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
 
 def test_the_progress_term_pays_the_rate_the_depth_error_shrinks(env):
     """Nose 30° up at 1.2 m/s: the vehicle climbs at 0.6 m/s, which earns +0.6 under a set-point above
-    it, −0.6 under one below, whatever the heading."""
+    it, −0.6 under one below (heading 1 rad: the climb is read in the world frame)."""
     state = env.reset(jax.random.PRNGKey(0))
     task, info = state.info["task"], state.info
     vs = env.plant.vehicle_state(state.pipeline_state)

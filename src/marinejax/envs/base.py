@@ -99,7 +99,8 @@ class RewardConfig:
     the heading term is flat; impact (tasks in a scene with contacts): −(|contact force| − threshold)/threshold
     above the task's threshold; progress (tasks with a goal): the speed towards it, m/s (the distance
     gained over the step / dt; the autopilot's: the rate its depth error shrinks, m/s); collision (the
-    same): −1 on the step the vehicle hits an obstacle; proximity (the same): −(1 − gap / range) within the task's range of an obstacle, 0 beyond;
+    same): −1 on the step the vehicle hits an obstacle; proximity (the same): −(1 − gap / range) within
+    the task's range of an obstacle, 0 beyond;
     docked (docking): the torpedo's 1 on the step the latch closes, the ROV's the time docked without a
     break over the time it must hold, at most 1.
     """
