@@ -195,6 +195,14 @@ def test_a_turn_scale_widens_every_turn_and_keeps_the_start(kind):
     # no scale: exactly the drawn path
     for a, b in zip(jax.tree.leaves(drawn), jax.tree.leaves(paths.sample(kind, key, config, 1.0))):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    # a grade scale flattens its climbs and dives (dz per m along the path) and nothing else
+    flat = paths.sample(kind, key, config, jnp.asarray(2.5), jnp.asarray(0.25))
+    grade = lambda p, s: float(paths.point(kind, p, jnp.asarray(s))[1][2] / jnp.linalg.norm(paths.point(kind, p, jnp.asarray(s))[1][:2]))  # noqa: E731
+    s = 1.0  # on the first straight of the legs, anywhere on a helix
+    if kind in ("lines", "helix"):
+        assert abs(grade(drawn, s)) > 0.005
+    np.testing.assert_allclose(grade(flat, s), 0.25 * grade(wide, s), atol=1e-6)
+    np.testing.assert_allclose(float(radius(flat)), float(radius(wide)), rtol=1e-6)
 
 
 def test_the_disturbed_task_fits_its_path_to_the_episodes_current_and_the_nominal_keeps_it():
@@ -215,6 +223,42 @@ def test_the_disturbed_task_fits_its_path_to_the_episodes_current_and_the_nomina
         assert expected.min() >= 1 / 0.8 and expected.max() > 2.0  # every episode widened; the strong currents more
         # the vehicle starts on the fitted path as on the drawn one: within the start offset
         assert np.asarray(states.metrics["position_error"]).max() <= np.hypot(c.start_offset, c.start_offset / 2) + 1e-4
+    # a disturbed helix is widened as the circle and keeps its descent per turn: its grade falls as much
+    helix = mj.make("Remus100-HelixFollowingDisturbed")
+    task = jax.vmap(helix.reset)(keys).info["task"]
+    drawn = jax.vmap(lambda k: paths.sample("helix", jax.random.split(jax.random.split(k, 6)[1])[0], helix.config.path))(keys)
+    assert np.all(np.asarray(task.path.size) > 1.2 * np.asarray(drawn.size))
+    np.testing.assert_allclose(np.asarray(task.path.pitch), np.asarray(drawn.pitch), rtol=1e-5)
+
+
+@pytest.mark.parametrize("name,kind", [("Remus100-CircleFollowingDisturbed", "circle"), ("Remus100-WaypointFollowingDisturbed", "lines")])
+def test_under_a_current_the_vehicle_starts_crabbed_into_it(name, kind):
+    """Under a (horizontal) current the start is under way in it: bow first through the water, its
+    velocity over the ground the commanded speed along the path (with no drawn heading error), the
+    propeller at the speed through the water; with one, the heading is off the crab course by it."""
+    keys = jax.random.split(jax.random.PRNGKey(3), 16)
+    for error in (0.0, None):
+        env = mj.make(name, start_heading_error=error) if error is not None else mj.make(name)
+        states = jax.vmap(env.reset)(keys)
+        vs = jax.vmap(env.plant.vehicle_state)(states.pipeline_state)
+        current = np.asarray(states.pipeline_state.current.value, np.float64)
+        rot = np.asarray(jax.vmap(quat_to_mat)(vs.quaternion), np.float64)
+        ground = np.einsum("eij,ej->ei", rot, np.asarray(vs.velocity, np.float64))
+        water = np.einsum("eji,ej->ei", rot, ground - current)  # body frame
+        speed = np.linalg.norm(water, axis=1)
+        assert np.all(current[:, 2] == 0.0) and np.linalg.norm(current, axis=1).max() > 0.2  # horizontal, and strong
+        np.testing.assert_allclose(water[:, 1:], 0.0, atol=1e-5)  # bow first through the water
+        np.testing.assert_allclose(np.asarray(vs.actuators)[:, 2], speed / env.config.top_speed * 1525.0, rtol=1e-4)
+        task = states.info["task"]
+        tangent = np.asarray(jax.vmap(lambda p: paths.point(kind, p, jnp.zeros(()))[1])(task.path), np.float64)
+        crab = np.degrees(np.arccos(np.clip(np.einsum("ei,ei->e", rot[:, :, 0], tangent), -1.0, 1.0)))
+        if error == 0.0:
+            np.testing.assert_allclose(ground, np.asarray(task.speed)[:, None] * tangent, atol=1e-4)
+            assert crab.max() > 10.0  # a strong cross current: turned well into it
+        else:  # the bow off the crab course (the water velocity that flies the path) by the drawn error
+            needed = np.asarray(task.speed)[:, None] * tangent - current
+            off = np.arccos(np.clip(np.einsum("ei,ei->e", rot[:, :, 0], needed) / np.linalg.norm(needed, axis=1), -1.0, 1.0))
+            assert off.max() <= env.config.start_heading_error + 1e-4 and off.max() > 0.5 * env.config.start_heading_error
 
 
 def test_a_current_faster_than_the_path_is_refused():

@@ -33,6 +33,17 @@ def test_docking_is_one_task_name_with_a_class_per_vehicle_kind():
         marinejax.make("Remus100-Docking", nose=(0.8, 0.0))
 
 
+def test_disturbed_docking_starts_bow_first_over_the_ground_not_crabbed():
+    """Unlike the paths (`fit_start`), docking keeps the drawn start in a current: moving forward at
+    the commanded speed over the ground, body frame."""
+    env = marinejax.make("Remus100-DockingDisturbed")
+    states = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(3), 8))
+    vs = jax.vmap(env.plant.vehicle_state)(states.pipeline_state)
+    assert np.linalg.norm(np.asarray(states.pipeline_state.current.value), axis=1).max() > 0.1
+    speed = np.asarray(states.info["task"].speed)
+    np.testing.assert_allclose(np.asarray(vs.velocity), np.stack([speed, 0 * speed, 0 * speed], axis=1), atol=1e-6)
+
+
 def _at(env, nose_position, yaw=0.0, speed=1.0):
     """A vehicle state whose nose is at `nose_position` (m, world), level, at heading `yaw`, moving
     forward at `speed` (m/s)."""

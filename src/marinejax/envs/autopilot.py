@@ -58,7 +58,6 @@ from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, 
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
-from marinejax.plant import CurrentConfig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,10 +74,6 @@ class AutopilotConfig(CruisingConfig):
     start_depth_error: float = 2.0  # m
     start_heading_error: float = math.pi / 2  # rad
     depth_clip: float = 5.0  # m, the observed depth error is clipped to ± this
-    # Disturbed: horizontal mean currents. A depth to hold under a current sinking at up to 15° (0.13 m/s)
-    # is out of reach slow through the water: the REMUS 100 with its planes at the limit climbs at most
-    # 0.04 m/s at 0.75 m/s; with 15°, seeds 0-4 reached 0.27-0.44 m, with 0°, 0.09-0.12 m (docs/results.md).
-    current: CurrentConfig = CurrentConfig(speed=(0.0, 0.5), max_elevation_deg=0.0)
     max_distance: float = 25.0  # m of depth error: the episode terminates beyond
     # position: depth term 1/(1 + (e/position_scale)^2); precision: exp(−|e|/precision_scale) of the
     # depth error e; progress: the rate |e| shrinks, sign(e)·ż (m/s, ż the world vertical velocity),

@@ -275,9 +275,11 @@ class MarineEnv(Env):
         if params is None:
             params = self.plant.sample_params(k_params)
         params = self.arrange_scene(params, task)  # the episode's obstacles, for a task that places them
-        ps = self.plant.init(k_cur, params, self._initial_pose(k_pose, task))
+        start = self._initial_pose(k_pose, task)
+        ps = self.plant.init(k_cur, params, start)
+        task = self.fit_task(k_task, task, params, ps.current, self.plant.vehicle_state(ps))  # what the episode's current and physics allow
+        ps = self.plant.init(k_cur, params, self.fit_start(task, ps.current, start))  # the same current (the same key)
         vs = self.plant.vehicle_state(ps)
-        task = self.fit_task(k_task, task, params, ps.current, vs)  # what the episode's current and physics allow
         action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
             "rng": rng,
@@ -559,6 +561,11 @@ class MarineEnv(Env):
         episode's physics and current allow, without moving its start (`start`: the vehicle as
         `_initial_pose` placed it). Most tasks keep it as drawn."""
         return task
+
+    def fit_start(self, task: Any, current: CurrentState, start: VehicleState) -> VehicleState:
+        """The start (`start`: as `_initial_pose` placed it) fitted to the episode's current at the
+        start (`current`) and fitted task. Most tasks keep it."""
+        return start
 
     def arrange_scene(self, params: PlantParams, task: Any) -> PlantParams:
         """The episode's parameters with the scene's movable geoms placed for `task`

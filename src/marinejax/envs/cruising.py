@@ -29,7 +29,12 @@ class CruisingConfig(EnvConfig):
     control_dt: float = 0.1  # s: 10 Hz, an AUV autopilot's rate
     substeps: int = 2  # two 50 ms physics steps per action
     top_speed: float = 2.554  # m/s at full propeller command (the REMUS 100's): the start's shaft speed, linear in speed
-    current: CurrentConfig = CurrentConfig(speed=(0.0, 0.5))  # m/s, used when current.mode is not "off" (Disturbed)
+    # m/s, used when current.mode is not "off" (Disturbed). Horizontal: ocean currents are, to within
+    # mm/s, and a torpedo slow through the water cannot hold a depth under a current sinking at 15°
+    # (0.13 m/s at 0.5 m/s): the REMUS 100 with its stern planes at the limit climbs at most 0.04 m/s
+    # at 0.75 m/s. The disturbed autopilot's seeds 0-4 reached 0.27-0.44 m of depth error with 15°,
+    # 0.09-0.12 m with 0° (docs/results.md).
+    current: CurrentConfig = CurrentConfig(speed=(0.0, 0.5), max_elevation_deg=0.0)
     # A torpedo is ballasted to trim: its centre of buoyancy drawn within ±1 mm of the nominal (about
     # 3° of pitch or roll with the REMUS 100's 2 cm BG), not the ROVs' ±5 mm (14°), which takes most
     # of the stern planes' moment at 1 m/s and has no actuator at all in roll: with it, a REMUS at
@@ -82,10 +87,12 @@ class CruisingEnv(MarineEnv):
         """The actuator states, each scaled to [−1, 1] by its command range."""
         return (vs.actuators - self._act_mid) / self._act_half
 
-    def cruising_state(self, position, roll_pitch_yaw, speed) -> VehicleState:
-        """At `position` (m, world), attitude (rad), moving forward at `speed` (m/s): the propeller at
-        about that speed's shaft speed (linear in speed up to `config.top_speed`), fins at 0."""
+    def cruising_state(self, position, roll_pitch_yaw, speed, velocity=None) -> VehicleState:
+        """At `position` (m, world), attitude (rad), moving forward through the water at `speed` (m/s):
+        the propeller at about that speed's shaft speed (linear in speed up to `config.top_speed`),
+        fins at 0. `velocity`: the velocity over the ground (m/s, body frame), by default (speed, 0, 0),
+        the velocity through still water."""
         shaft = self._act_lo + jnp.clip(speed / self.config.top_speed, 0.0, 1.0) * (self._act_hi - self._act_lo)
         return VehicleState(position=position, quaternion=quat_from_euler(*roll_pitch_yaw),
-                            velocity=jnp.array([1.0, 0.0, 0.0]) * speed, angular_velocity=jnp.zeros(3),
-                            actuators=jnp.where(self._propeller, shaft, 0.0))
+                            velocity=jnp.array([1.0, 0.0, 0.0]) * speed if velocity is None else velocity,
+                            angular_velocity=jnp.zeros(3), actuators=jnp.where(self._propeller, shaft, 0.0))

@@ -5,13 +5,14 @@ Unlike tracking, nothing moves along the path by itself: the task's state is the
 the vehicle's closest point on the path, updated after every step by projection (`paths.project`,
 from the previous one, so it never jumps to another part of the path). The vehicle starts near the
 path's start point, up to `start_offset` m off it sideways and half that vertically, on the path's
-heading within ±`start_heading_error` rad, moving forward at the commanded speed. The defaults
+heading within ±`start_heading_error` rad, moving forward at the commanded speed (under a current:
+over the ground, along the path, bow first through the water, `fit_start`). The defaults
 (0.5 m, 0.1 rad) let it reach the path within the first `settle_time` s: at 1 m/s the REMUS 100
 turns at most 1/24 m/s² sideways (turning radius 24 m at full rudder), and a bang-bang sideways move
 of y metres takes at least 2·sqrt(24·y) s, 7 s for 0.5 m but 14 s for 2 m.
 
 Under a current or randomized physics (the Disturbed variants) the path is fitted to what the
-episode lets the vehicle turn (`fit_task`). A torpedo turns through the water on a circle of radius
+episode lets the vehicle turn and climb (`fit_task`). A torpedo turns through the water on a circle of radius
 R_t(U) at its speed U through the water. Carried along the path by a current c while it holds the
 commanded speed V over the ground, it moves through the water at V − c and must still turn the
 ground track at V/R: that asks R ≥ R_t(V − c)·(V/(V − c))². R_t grows as the speed falls (the fins'
@@ -21,9 +22,16 @@ widen it at most as 1/f. So every radius of curvature of the episode's path is m
 (V/(V − c))³ / f_min, with c the horizontal speed of the episode's mean current plus
 2·√2·`current.ou_sigma` (what the OU current adds, two standard deviations) and f_min the lowest fin
 lift the randomization draws: the nominal path's margin over the turning circle at speed V is kept
-for the worst fins and the strongest current of the episode. The mean current is what a mission
-planner knows; the fins' true lift is not, hence its lower bound. The start point and direction
-stay, so the start pose is the drawn one. The nominal tasks (no current, no randomization) keep the drawn path.
+for the worst fins and the strongest current of the episode. The same holds for climbing: the
+stern planes' moment goes as f·U², and the steepest climb or dive the REMUS 100 holds falls about
+as f·U³ (0.28, 0.13 and 0.044 m/s at 1.25, 1 and 0.75 m/s through the water, level trim), while the
+path asks V × its grade over the ground; so every grade (the legs', the helix's descent per turn
+over its length) is divided by the same factor: the helix keeps its descent per turn. Without this,
+a policy descending a helix downstream in a 0.47 m/s current at 0.76 m/s through the water ran out
+of stern plane (pinned for 50 s) and ended 3 m above the path (docs/results.md). The mean current
+is what a mission planner knows; the fins' true lift is not, hence its lower bound. The start point
+and the start heading stay (its climb flattens with the grades), so the start position is the
+drawn one. The nominal tasks (no current, no randomization) keep the drawn path.
 
 Observation (body frame FLU unless stated), size 3·m + 17 + 2 × number of actions (+ 4 with the integral),
 m = `num_preview_points`:
@@ -56,7 +64,7 @@ from marinejax.config import check_nonnegative
 from marinejax.envs.base import RewardConfig, distance_terms, heading_error
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
 from marinejax.errors import UserError
-from marinejax.frames import quat_to_mat
+from marinejax.frames import quat_from_euler, quat_to_mat
 from marinejax.physics import VehicleState
 
 
@@ -122,12 +130,12 @@ class PathFollowing(CruisingEnv):
         return PathTask(path=path, speed=speed, s=s, along_speed=speed, yaw=_course(paths.point(self.kind, path, s)[1]))
 
     def fit_task(self, rng, task: PathTask, params, current, start) -> PathTask:
-        """The drawn path with every radius of curvature × `turn_scale` (module docstring)."""
+        """The drawn path with every radius of curvature × `turn_scale` and every grade ÷ it (module docstring)."""
         scale = self.turn_scale(task.speed, current.mean)
         if scale is None:
             return task
-        # the key `_sample_task` drew the path from, so the fitted path is the drawn one, widened
-        return task.replace(path=paths.sample(self.kind, jax.random.split(rng)[0], self.config.path, scale))
+        # the key `_sample_task` drew the path from, so the fitted path is the drawn one, widened and flattened
+        return task.replace(path=paths.sample(self.kind, jax.random.split(rng)[0], self.config.path, scale, 1.0 / scale))
 
     def turn_scale(self, speed: jnp.ndarray, current_mean: jnp.ndarray) -> jnp.ndarray | None:
         """(V/(V − c))³ / f_min (module docstring) for commanded speed V (m/s) and the episode's mean
@@ -140,6 +148,25 @@ class PathFollowing(CruisingEnv):
             return jnp.asarray(1.0 / fins)
         drift = current_drift(c, current_mean)
         return jnp.maximum(1.0, (speed / (speed - drift)) ** 3) / fins
+
+    def fit_start(self, task: PathTask, current, start: VehicleState) -> VehicleState:
+        """Under a current, under way in it as a vehicle already on the path would be: bow first
+        through the water, with heading and pitch turned by the crab angle that makes its velocity
+        over the ground the commanded speed along the path (plus the drawn heading error, as without
+        a current), the propeller at the speed through the water. Started on the path's heading
+        instead, a cross current of 0.3 m/s at 1.2 m/s carried the vehicle metres off the path
+        before its fins had turned it the 15° into the current (docs/results.md). Without a
+        current, the start as drawn."""
+        if self.config.current.mode == "off":
+            return start
+        ground = task.speed * paths.point(self.kind, task.path, task.s)[1]  # m/s, world
+        water = ground - current.value
+        speed = jnp.linalg.norm(water)
+        yaw = jnp.arctan2(water[1], water[0]) - heading_error(start.quaternion, task.yaw)
+        pitch = -jnp.arcsin(jnp.clip(water[2] / speed, -1.0, 1.0))  # nose up is negative pitch (FLU, z up)
+        rot = quat_to_mat(quat_from_euler(0.0, pitch, yaw))
+        velocity = jnp.array([1.0, 0.0, 0.0]) * speed + rot.T @ current.value  # over the ground, body frame
+        return self.cruising_state(start.position, (0.0, pitch, yaw), speed, velocity=velocity)
 
     def advance_task(self, task: PathTask, vs: VehicleState, info) -> PathTask:
         s = paths.project(self.kind, task.path, task.s, vs.position)

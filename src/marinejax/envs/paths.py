@@ -86,19 +86,21 @@ class Legs:
     radius: jnp.ndarray  # () m
 
 
-def sample(kind: str, rng: jax.Array, config: PathConfig, turn_scale: jnp.ndarray | float = 1.0):
+def sample(kind: str, rng: jax.Array, config: PathConfig, turn_scale: jnp.ndarray | float = 1.0,
+           grade_scale: jnp.ndarray | float = 1.0):
     """One episode's path of `kind` (static under jit): a `Legs`, or a `trajectories.TrajectoryParams`.
     `turn_scale` (≥ 1, may be traced) multiplies every radius of curvature (the circle's and the
     helix's radius, with the helix's descent per turn, the lemniscate's size, the legs' fillet
     radius) and leaves the start point, the start direction, the grades and the legs' lengths as
-    they are."""
+    they are; `grade_scale` (≤ 1, may be traced) multiplies the grades (dz per m along the path:
+    the legs', the helix's)."""
     check_kind(kind)
     if kind != "lines":
         size = config.lemniscate_size if kind == "lemniscate" else config.radius
         curve = trajectories.TrajectoryConfig(speed=(1.0, 1.0), size=size, helix_pitch=config.helix_pitch,
                                               center_z=config.depth, ramp_time=0.0)
         params = trajectories.sample_params(kind, rng, curve)
-        params = params.replace(size=params.size * turn_scale, pitch=params.pitch * turn_scale)  # the helix keeps its grade
+        params = params.replace(size=params.size * turn_scale, pitch=params.pitch * turn_scale * grade_scale)
         # place the start point (not the centre) at the origin's x and y, at the drawn depth
         start = trajectories.point_at(kind, params, jnp.zeros(()))
         return params.replace(center=params.center - start.at[2].set(0.0))
@@ -107,7 +109,7 @@ def sample(kind: str, rng: jax.Array, config: PathConfig, turn_scale: jnp.ndarra
     depth = jax.random.uniform(k[0], minval=config.depth[0], maxval=config.depth[1])
     heading = jax.random.uniform(k[1], minval=-jnp.pi, maxval=jnp.pi)
     lengths = jax.random.uniform(k[2], (n,), minval=config.leg_length[0], maxval=config.leg_length[1])
-    grades = jax.random.uniform(k[3], (n,), minval=-config.leg_grade, maxval=config.leg_grade)
+    grades = jax.random.uniform(k[3], (n,), minval=-config.leg_grade, maxval=config.leg_grade) * grade_scale
     turns = jax.random.uniform(k[4], (max(n - 1, 1), 2))
     turn = (config.turn[0] + turns[:, 0] * (config.turn[1] - config.turn[0])) * jnp.where(turns[:, 1] < 0.5, -1.0, 1.0)
     r = jnp.asarray(config.fillet_radius, jnp.float32) * turn_scale

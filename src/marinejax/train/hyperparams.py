@@ -129,8 +129,9 @@ _TUNED_ENVS: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
 # recipe) but in 342-361 s. A curriculum lands all three in 85-142 s: the shipped circle policy
 # (`policies/Remus100-CircleFollowing`, the circle's recipe, seed 0) fine-tuned on the path with the
 # circle's settings for 4 M steps (docs/results.md: seeds 0-4). The disturbed paths (currents, new
-# physics, paths fitted to what the vehicle can turn) start from it too: from scratch with their task's
-# recipe no seed came within 0.45 m (docs/results.md).
+# physics, paths fitted to what the vehicle can turn and climb) start from it too: every seed 0-4 of
+# every path within 0.062-0.092 m in 80-140 s; from scratch with their task's recipe no seed came
+# within 0.45 m (docs/results.md).
 _FROM_CIRCLE = (dataclasses.replace(_CIRCLE, num_timesteps=4_000_000, init_from="Remus100-CircleFollowing"), {})
 _TUNED_ENVS.update({f"Remus100-{task}{d}": _FROM_CIRCLE for task in ("HelixFollowing", "LemniscateFollowing", "WaypointFollowing")
                     for d in ("", "Disturbed")})
