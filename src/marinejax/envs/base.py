@@ -278,7 +278,9 @@ class MarineEnv(Env):
         start = self._initial_pose(k_pose, task)
         ps = self.plant.init(k_cur, params, start)
         task = self.fit_task(k_task, task, params, ps.current, self.plant.vehicle_state(ps))  # what the episode's current and physics allow
-        ps = self.plant.init(k_cur, params, self.fit_start(task, ps.current, start))  # the same current (the same key)
+        fitted = self.fit_start(task, ps.current, start)
+        if fitted is not start:  # a task that moves its start: the plant there, with the same current (the same key)
+            ps = self.plant.init(k_cur, params, fitted)
         vs = self.plant.vehicle_state(ps)
         action = jnp.zeros(self.action_size)
         info: dict[str, Any] = {
@@ -564,7 +566,8 @@ class MarineEnv(Env):
 
     def fit_start(self, task: Any, current: CurrentState, start: VehicleState) -> VehicleState:
         """The start (`start`: as `_initial_pose` placed it) fitted to the episode's current at the
-        start (`current`) and fitted task. Most tasks keep it."""
+        start (`current`) and fitted task. Most tasks keep it, returning `start` itself (the plant is
+        then not initialised again)."""
         return start
 
     def arrange_scene(self, params: PlantParams, task: Any) -> PlantParams:
