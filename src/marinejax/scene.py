@@ -23,8 +23,9 @@ after the task has ended).
 
 Scenes shipped: open_water (the default; no contacts, a seabed drawn 10 m below for videos),
 seabed (a hard flat seabed at world z = −5 m), wall (that seabed and a wall, the plane x = 2 m),
-rov_dock (an ROV docking cage with a funnel, landing point at the origin) and torpedo_dock (a cone
-narrowing to a tube along +x, for the REMUS 100).
+rov_dock (an ROV docking cage with a funnel, landing point at the origin), torpedo_dock (a cone
+narrowing to a tube along +x, for the REMUS 100), pillars (twelve piles a task places per episode)
+and terrain (a seabed of blocks along +x whose heights a task draws per episode).
 """
 
 from __future__ import annotations

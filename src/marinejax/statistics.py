@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import jax
+import mujoco
 import numpy as np
 
 from marinejax.control import Controller, policy_controller, rollout
@@ -29,8 +30,8 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     Returns arrays: time (T,), position (E, T, 3, m, world), quaternion (E, T, 4), target (E, T, 3),
     error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T)
     each of the task's other errors (`MarineEnv.error_names`: heading_error_deg, and e.g. speed_error).
-    In a scene with movable geoms also layout (E, k, 3, m, world: where they were) and layout_size
-    (k, 3, the geoms' MuJoCo sizes); with scene sensors each one's observation, e.g. sonar (E, T,
+    In a scene with movable geoms also layout (E, k, 3, m, world: where they were), layout_size
+    (k, 3, the geoms' MuJoCo sizes) and layout_box (k, bool: a box, whose sizes are half-lengths); with scene sensors each one's observation, e.g. sonar (E, T,
     beams, m) and altimeter (E, T, 1, m).
     """
     steps = env.config.episode_length
@@ -57,6 +58,7 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     if ids.size:
         out["layout"] = to_np(layout[:, 0])
         out["layout_size"] = np.asarray(env.vehicle.mj_model.geom_size[ids], np.float64)
+        out["layout_box"] = env.vehicle.mj_model.geom_type[ids] == int(mujoco.mjtGeom.mjGEOM_BOX)
     return out
 
 

@@ -16,6 +16,7 @@ import functools
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import mujoco
 import numpy as np
 from flax import struct
@@ -318,3 +319,33 @@ def _set_inverse_weights(m: mujoco.MjModel, body: int, mass_matrix: np.ndarray) 
     m.body_invweight0[body] = [translation, rotation]
     dof = m.jnt_dofadr[m.body_jntadr[body]]
     m.dof_invweight0[dof : dof + 6] = [translation] * 3 + [rotation] * 3
+
+
+@struct.dataclass
+class Capsules:
+    a: jnp.ndarray  # (k, 3) m, body: one end of each capsule's axis
+    b: jnp.ndarray  # (k, 3) m, body: the other
+    radius: jnp.ndarray  # (k,) m
+
+
+def collision_capsules(m, body_id: int, vehicle: str) -> Capsules:
+    """The vehicle's collision geoms (on its body `body_id` of MuJoCo model `m`, colliding) as capsule
+    axes in the body frame, for tasks that measure a clearance themselves; a sphere is a capsule of
+    zero length. UserError naming the geom for another shape."""
+    a, b, radius = [], [], []
+    for i in np.nonzero((m.geom_bodyid == body_id) & (m.geom_contype != 0))[0]:
+        kind = int(m.geom_type[i])
+        if kind not in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_SPHERE)):
+            raise UserError(f"vehicle {vehicle!r}: clearances are measured to capsule or sphere collision geoms, "
+                            f"geom {m.geom(i).name!r} is a {mujoco.mjtGeom(kind).name}")
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, m.geom_quat[i])
+        half = rot.reshape(3, 3)[:, 2] * (m.geom_size[i, 1] if kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE) else 0.0)
+        centre = m.geom_pos[i]  # body frame, about the body's origin (VehicleState.position)
+        a.append(centre - half)
+        b.append(centre + half)
+        radius.append(m.geom_size[i, 0])
+    if not radius:
+        raise UserError(f"vehicle {vehicle!r} has no collision geoms (class \"collision\" in its MJCF)")
+    return Capsules(a=jnp.asarray(np.array(a), jnp.float32), b=jnp.asarray(np.array(b), jnp.float32),
+                    radius=jnp.asarray(np.array(radius), jnp.float32))

@@ -28,9 +28,10 @@ def test_every_vehicle_file_gets_every_task_and_its_disturbed_variant():
 
 
 def test_tasks_go_to_the_vehicles_of_their_kind():
-    """The torpedo REMUS 100 cannot hover: it gets the autopilot, path following and its own docking and
-    none of the ROV tasks, and asking for one says why; the ROVs get neither."""
-    torpedo_tasks = ["Docking", "Autopilot", "WaypointFollowing", "CircleFollowing", "HelixFollowing", "LemniscateFollowing"]
+    """The torpedo REMUS 100 cannot hover: it gets the autopilot, terrain following, path following and
+    its own docking and none of the ROV tasks, and asking for one says why; the ROVs get neither."""
+    torpedo_tasks = ["Docking", "Autopilot", "TerrainFollowing", "WaypointFollowing", "CircleFollowing", "HelixFollowing",
+                     "LemniscateFollowing"]
     assert [n for n in marinejax.list_envs() if n.startswith("Remus100-")] == [
         f"Remus100-{t}{variant}" for t in torpedo_tasks for variant in ("", "Disturbed")]
     assert [n for n in marinejax.list_envs() if n.startswith("Remus100FourFin-")] == [

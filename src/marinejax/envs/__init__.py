@@ -1,5 +1,5 @@
 """Registered RL tasks: station keeping, docking, obstacle avoidance and circle, helix and lemniscate tracking for ROVs; the
-autopilot, waypoint, circle, helix and lemniscate path following and docking for torpedo AUVs.
+autopilot, terrain following, waypoint, circle, helix and lemniscate path following and docking for torpedo AUVs.
 
     env = marinejax.make("BlueROV2Heavy-StationKeeping", current={"mode": "constant"})
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
@@ -24,6 +24,7 @@ from marinejax.envs.docking import Docking, DockingConfig
 from marinejax.envs.obstacle_avoidance import ObstacleAvoidance, ObstacleAvoidanceConfig
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
+from marinejax.envs.terrain_following import TerrainFollowing, TerrainFollowingConfig
 from marinejax.envs.torpedo_docking import TorpedoDocking, TorpedoDockingConfig
 from marinejax.envs.tracking import TrackingConfig, Tracking
 from marinejax.envs.trajectories import TrajectoryConfig
@@ -34,6 +35,7 @@ register_task("Docking", Docking)  # ROVs, in the rov_dock scene
 register_task("Docking", TorpedoDocking)  # torpedo AUVs, in the torpedo_dock scene
 register_task("ObstacleAvoidance", ObstacleAvoidance)  # ROVs, in the pillars scene, with the sonar
 register_task("Autopilot", Autopilot)  # torpedo AUVs
+register_task("TerrainFollowing", TerrainFollowing)  # torpedo AUVs, in the terrain scene, with the altimeter and sonar
 register_task("WaypointFollowing", PathFollowing, kind="lines")
 register_task("CircleFollowing", PathFollowing, kind="circle")
 register_task("HelixFollowing", PathFollowing, kind="helix")
@@ -64,6 +66,8 @@ __all__ = [
     "RandomizationConfig",
     "ResetConfig",
     "RewardConfig",
+    "TerrainFollowing",
+    "TerrainFollowingConfig",
     "TorpedoDocking",
     "TorpedoDockingConfig",
     "env_spec",

@@ -54,7 +54,7 @@ from flax import struct
 
 from marinejax.config import check_range
 from marinejax.envs.base import RewardConfig, distance_terms, heading_error
-from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, weakest_fins
+from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, speeds_through_water, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
 from marinejax.physics import VehicleState
@@ -152,9 +152,8 @@ class Autopilot(CruisingEnv):
         c = self.config
         if c.current.mode == "off" and not c.randomization.enabled:
             return task
-        lo, hi = c.speed_range
         drift = current_drift(c, current.mean)
-        speed = lo + drift + (task.speed - lo) * ((hi - lo - 2 * drift) / (hi - lo) if hi > lo else 0.0)
+        speed = speeds_through_water(c, task.speed, drift)
         depth_reach, heading_reach = self._reach((speed - drift) * weakest_fins(c) ** 0.5)
         # the start's errors shrink with the first segment's reach, the start itself stays
         drawn_depth, drawn_heading = (jnp.maximum(r, 1e-9) for r in self._reach(task.speed[0]))

@@ -60,6 +60,14 @@ def current_drift(config: CruisingConfig, current_mean: jnp.ndarray) -> jnp.ndar
     return jnp.linalg.norm(current_mean[:2]) + current_margin(config)
 
 
+def speeds_through_water(config: CruisingConfig, speed: jnp.ndarray, drift: jnp.ndarray) -> jnp.ndarray:
+    """Speed set-points over the ground (m/s) drawn within `config.speed_range` = (lo, hi), mapped
+    into [lo + drift, hi − drift] (`drift`, m/s: `current_drift`), so that the speed through the
+    water stays within (lo, hi) whatever the heading."""
+    lo, hi = config.speed_range
+    return lo + drift + (speed - lo) * ((hi - lo - 2 * drift) / (hi - lo) if hi > lo else 0.0)
+
+
 def weakest_fins(config: CruisingConfig) -> float:
     """The lowest fin lift factor the randomization draws (1 without randomization): the episode's
     true fins are unknown to whoever plans its task, their lower bound is not."""

@@ -45,6 +45,7 @@ from marinejax.frames import quat_from_euler, quat_to_mat
 from marinejax.physics import VehicleState
 from marinejax.plant.sensors import SensorConfig
 from marinejax.plant.sonar import SonarConfig
+from marinejax.vehicle import collision_capsules
 
 PILES = tuple(f"pillar{i}" for i in range(12))  # the movable geoms of the pillars scene
 _PARKED = 1000.0  # m: where unused piles go, far beyond any sensor's range
@@ -101,7 +102,7 @@ class ObstacleAvoidance(MarineEnv):
         super().__init__(vehicle, config)
         m = self.vehicle.mj_model
         self._pile_radius = jnp.asarray(m.geom_size[np.asarray(self.plant.sys.layout_ids, int), 0], jnp.float32)
-        self._hull = _collision_capsules(m, self.plant.sys.body_id, self.vehicle.name)
+        self._hull = collision_capsules(m, self.plant.sys.body_id, self.vehicle.name)
 
     @property
     def success_threshold_m(self) -> float:
@@ -187,33 +188,3 @@ class ObstacleAvoidance(MarineEnv):
             **self._attitude_terms(vs, self._bearing(vs, task), action, info["last_action"]),
         }
 
-
-@struct.dataclass
-class _Capsules:
-    a: jnp.ndarray  # (k, 3) m, body: one end of each capsule's axis
-    b: jnp.ndarray  # (k, 3) m, body: the other
-    radius: jnp.ndarray  # (k,) m
-
-
-def _collision_capsules(m, body_id: int, vehicle: str) -> _Capsules:
-    """The vehicle's collision geoms (on its body, colliding) as capsule axes in the body frame; a
-    sphere is a capsule of zero length."""
-    import mujoco
-
-    a, b, radius = [], [], []
-    for i in np.nonzero((m.geom_bodyid == body_id) & (m.geom_contype != 0))[0]:
-        kind = int(m.geom_type[i])
-        if kind not in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_SPHERE)):
-            raise UserError(f"vehicle {vehicle!r}: the obstacle task needs capsule or sphere collision geoms, "
-                            f"geom {m.geom(i).name!r} is a {mujoco.mjtGeom(kind).name}")
-        rot = np.zeros(9)
-        mujoco.mju_quat2Mat(rot, m.geom_quat[i])
-        half = rot.reshape(3, 3)[:, 2] * (m.geom_size[i, 1] if kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE) else 0.0)
-        centre = m.geom_pos[i]  # body frame, about the body's origin (VehicleState.position)
-        a.append(centre - half)
-        b.append(centre + half)
-        radius.append(m.geom_size[i, 0])
-    if not radius:
-        raise UserError(f"vehicle {vehicle!r} has no collision geoms (class \"collision\" in its MJCF)")
-    return _Capsules(a=jnp.asarray(np.array(a), jnp.float32), b=jnp.asarray(np.array(b), jnp.float32),
-                     radius=jnp.asarray(np.array(radius), jnp.float32))

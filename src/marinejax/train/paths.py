@@ -8,13 +8,14 @@ import numpy as np
 
 
 def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: int = 0) -> Path:
-    """PNG: the vehicle's path against the reference in 3-D and from the top, and the error over time."""
+    """PNG: the vehicle's path against the reference in 3-D and from the top (from the side over a
+    seabed of blocks), and the error over time."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    p, r, t = result["position"][episode], result["target"][episode], result["time"]
+    p, r = result["position"][episode], result["target"][episode]
     fig = plt.figure(figsize=(14, 4.6))
     station = bool(np.allclose(r, r[0]))  # station keeping: the reference is one point
     ax = fig.add_subplot(1, 3, 1, projection="3d")
@@ -23,6 +24,17 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
     ax.set_xlabel("x (m)"), ax.set_ylabel("y (m)"), ax.set_zlabel("z (m)")
     ax.legend(loc="upper left")
     ax2 = fig.add_subplot(1, 3, 2)
+    boxes = result["layout_box"] if "layout" in result else np.zeros(0, bool)
+    if boxes.any():  # a seabed of blocks (terrain following): the side view, the blocks' tops under the path
+        for (x, _, z), size in zip(result["layout"][episode][boxes], result["layout_size"][boxes]):
+            ax2.fill_between([x - size[0], x + size[0]], z - size[2], z + size[2], color="0.6", lw=0)
+        ax2.plot(r[:, 0], r[:, 2], "k--", lw=1, label="reference")
+        ax2.plot(p[:, 0], p[:, 2], "C0", lw=1.5, label="vehicle")
+        ax2.set_ylim(min(r[:, 2].min(), p[:, 2].min()) - 4.0, max(r[:, 2].max(), p[:, 2].max()) + 1.0)
+        ax2.set_xlim(p[:, 0].min() - 5.0, p[:, 0].max() + 5.0)
+        ax2.set_xlabel("x (m)"), ax2.set_ylabel("z (m)"), ax2.set_title("side view, the seabed in grey")
+        ax2.legend()
+        return _finish(fig, result, episode, title, out)
     ax2.plot(r[:1, 0] if station else r[:, 0], r[:1, 1] if station else r[:, 1], "r*" if station else "k--", lw=1, ms=12,
              label="target" if station else "reference")
     ax2.plot(p[:, 0], p[:, 1], "C0", lw=1.5, label="vehicle")
@@ -35,6 +47,14 @@ def plot_paths(result: dict[str, np.ndarray], title: str, out: Path, episode: in
     ax2.set_aspect("equal", adjustable="datalim")
     ax2.set_xlabel("x (m)"), ax2.set_ylabel("y (m)"), ax2.set_title("top view")
     ax2.legend()
+    return _finish(fig, result, episode, title, out)
+
+
+def _finish(fig, result: dict[str, np.ndarray], episode: int, title: str, out: Path) -> Path:
+    """The error panel, the title, and the PNG written to `out`."""
+    import matplotlib.pyplot as plt
+
+    t = result["time"]
     ax3 = fig.add_subplot(1, 3, 3)
     for e in range(result["error"].shape[0]):
         ax3.plot(t, result["error"][e], color="0.8", lw=0.6)

@@ -1,0 +1,233 @@
+"""Terrain following, for torpedo AUVs: hold a commanded altitude over an uneven seabed drawn per
+episode, a heading along the transect and a speed, seeing the seabed only through the DVL's
+bottom-lock beams (altimeter) and the forward-looking sonar.
+
+Scene `terrain` (`models/scenes/terrain.xml`): blocks 4 m long side by side along world +x, whose
+heights follow a profile drawn per episode, the sum of `waves` sines of wavelengths in `wavelength`
+(m), random phases and each with the steepest slope `max_slope` / `waves`, sampled at the blocks'
+centres: a staircase of steps up to 4 m × `max_slope` high about a mean depth drawn so that the
+commanded altitude over it is at a depth in `depth_range` (m, world z; the autopilot's 5-30 m).
+
+Episode: the vehicle starts over x = 0 at the commanded altitude ± `start_altitude_error` m on a
+heading within ±`start_heading_error` of the transect's (world +x, the heading set-point), moving
+forward at a speed in `speed_range`; the set-points (altitude in `altitude_range` m, speed in
+`speed_range` m/s) hold for the episode. Under a current (the Disturbed variant) the speed set-point
+is over the ground and fitted as the autopilot's (`speeds_through_water`); its currents are at most
+0.3 m/s (`current`), so the speed through the water stays within `speed_range` (1-2 m/s: the fins'
+full authority, module `autopilot`).
+
+The altitude (m) is the vertical distance from the vehicle's origin to the block below it. The
+policy sees it only as measured: the altimeter's altitude (along the DVL's axis, from its head)
+turned vertical and moved to the origin, the last valid one held while the DVL has no bottom lock.
+
+Observation: the autopilot's (`autopilot` module docstring), so its policy can start this task, with
+  [0]    the altitude error, set-point − measured altitude (m; positive: rise), clipped to ±`depth_clip`
+  [13]   the world z (m) / 10 at which the measured altitude would be the set-point
+and the integral of that altitude error, then the altimeter's altitude and the sonar's ranges
+(scene sensors, appended by the base).
+Statistics: `position_error` is the altitude error |set-point − altitude| (m), with `heading_error_deg`,
+`speed_error` (m/s), `collision` (1: the hull touched the seabed, which ends the episode) and
+`clearance` (m, the hull's lowest point above the seabed); the evaluation window is the episode after
+its first `settle` s. Reward: the autopilot's terms on the altitude error, and `collision`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from marinejax.config import check_range
+from marinejax.envs.autopilot import Autopilot, AutopilotConfig
+from marinejax.envs.base import MarineEnv, RewardConfig
+from marinejax.envs.cruising import current_drift, speeds_through_water
+from marinejax.errors import UserError
+from marinejax.frames import quat_to_mat
+from marinejax.physics import VehicleState
+from marinejax.plant import CurrentConfig
+from marinejax.plant.altimeter import AltimeterConfig
+from marinejax.plant.sensors import SensorConfig
+from marinejax.plant.sonar import SonarConfig
+from marinejax.vehicle import collision_capsules
+
+BLOCKS = tuple(f"block{i}" for i in range(32))  # the movable geoms of the terrain scene, along +x
+BLOCK_LENGTH = 4.0  # m along x (the scene's box half-size 2 m)
+BLOCK_HALF_HEIGHT = 10.0  # m (the scene's box half-size)
+FIRST_BLOCK_X = -6.0  # m, world x where the first block starts
+
+
+@dataclasses.dataclass(frozen=True)
+class TerrainFollowingConfig(AutopilotConfig):
+    scene: str = "terrain"
+    movable_geoms: tuple[str, ...] = dataclasses.field(default=BLOCKS, metadata={"variable_length": True})
+    segments: int = 1
+    segment_duration: float = 60.0
+    episode_length: int = 600  # 60 s at 10 Hz: 60-120 m of transect
+    settle: float = 10.0  # s: the evaluation window starts after this
+    speed_range: tuple[float, float] = (1.0, 2.0)  # m/s
+    altitude_range: tuple[float, float] = (1.5, 3.0)  # m, the altitude set-point
+    start_altitude_error: float = 0.5  # m
+    start_heading_error: float = math.radians(10.0)  # rad
+    max_slope: float = 0.2  # the profile's steepest slope (rise over run)
+    wavelength: tuple[float, float] = (20.0, 60.0)  # m
+    waves: int = 3
+    max_distance: float = 10.0  # m of altitude error: the episode terminates beyond
+    # at most 0.3 m/s (the autopilot's 0.5 m/s would leave no speed range within 1-2 m/s through the water)
+    current: CurrentConfig = CurrentConfig(speed=(0.0, 0.3), max_elevation_deg=0.0)
+    # the DVL's beams (altitude) and a sonar fan of 8 beams over 40°, 20° down: it meets a seabed 2 m
+    # below 5.5 m ahead (3-5 s at 1-2 m/s); 12 rays among the 32 blocks per step
+    sensors: SensorConfig = SensorConfig(altimeter=AltimeterConfig(enabled=True),
+                                         sonar=SonarConfig(enabled=True, beams=8, horizontal_fov=math.radians(40.0),
+                                                           tilt=math.radians(20.0)))
+    # the autopilot's terms with sharper altitude terms: its depth terms are made for steps of metres
+    # (position scale 1 m), the altitude errors here are tenths of a metre; and the collision penalty
+    reward: RewardConfig = dataclasses.replace(AutopilotConfig.reward, position_scale=0.25, precision=3.0, collision=10.0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        check_range("altitude_range", self.altitude_range, positive=True)
+        check_range("wavelength", self.wavelength, positive=True)
+        for name in ("settle", "start_altitude_error", "start_heading_error", "max_slope"):
+            if not getattr(self, name) >= 0:
+                raise UserError(f"config '{name}' must be >= 0, got {getattr(self, name)}")
+        if self.segments != 1:
+            raise UserError(f"config 'segments' must be 1 for terrain following (one altitude, heading and speed), got {self.segments}")
+        if self.waves < 1:
+            raise UserError(f"config 'waves' must be >= 1, got {self.waves}")
+        if len(self.movable_geoms) < 2:
+            raise UserError(f"config 'movable_geoms' must name the terrain's blocks (at least 2), got {self.movable_geoms!r}")
+        if not self.sensors.altimeter.enabled:
+            raise UserError("config 'sensors.altimeter.enabled' must be true: terrain following measures the altitude with it")
+
+
+@struct.dataclass
+class TerrainTask:
+    altitude: jnp.ndarray  # () m, the altitude set-point
+    heading: jnp.ndarray  # () rad, the heading set-point (the transect's, world +x)
+    speed: jnp.ndarray  # () m/s, the speed set-point
+    yaw: jnp.ndarray  # () rad: the heading set-point (the base's `task.yaw`)
+    tops: jnp.ndarray  # (blocks,) m, world z of each block's top
+    ground: jnp.ndarray  # () m, world z of the seabed below the vehicle after the last step
+    xy: jnp.ndarray  # (2,) m, world x and y of the vehicle after the last step (for `target_position`)
+    held: jnp.ndarray  # () m, the altimeter's last valid altitude (along its axis), as of the last step
+
+
+class TerrainFollowing(Autopilot):
+    config_class = TerrainFollowingConfig
+    error_window_description = "after the first `settle` s of each episode"
+    error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m"})
+
+    def __init__(self, vehicle, config: TerrainFollowingConfig):
+        super().__init__(vehicle, config)
+        self._hull = collision_capsules(self.vehicle.mj_model, self.plant.sys.body_id, self.vehicle.name)
+        self._dvl = jnp.asarray(config.sensors.altimeter.position, jnp.float32)
+        sizes = self.vehicle.mj_model.geom_size[np.asarray(self.plant.sys.layout_ids, int)]
+        if not np.allclose(sizes[:, 0], BLOCK_LENGTH / 2) or not np.allclose(sizes[:, 2], BLOCK_HALF_HEIGHT):
+            raise UserError(f"terrain following needs blocks {BLOCK_LENGTH} m long and {2 * BLOCK_HALF_HEIGHT} m tall (the "
+                            f"terrain scene's); scene {self.vehicle.scene!r} gives its movable geoms the half-sizes {sizes.tolist()}")
+
+    def error_window(self, time):
+        return self.after(time, self.config.settle)
+
+    def seabed(self, tops: jnp.ndarray, x: jnp.ndarray) -> jnp.ndarray:
+        """World z (m) of the seabed at world x (m; any shape): the top of the block there."""
+        i = jnp.clip(jnp.floor((x - FIRST_BLOCK_X) / BLOCK_LENGTH).astype(jnp.int32), 0, tops.shape[0] - 1)
+        return tops[i]
+
+    def _sample_task(self, rng):
+        c = self.config
+        k = jax.random.split(rng, 5)
+        centres = FIRST_BLOCK_X + BLOCK_LENGTH * (jnp.arange(len(c.movable_geoms)) + 0.5)
+        wavelength = jax.random.uniform(k[0], (c.waves,), minval=c.wavelength[0], maxval=c.wavelength[1])
+        phase = jax.random.uniform(k[1], (c.waves,), maxval=2 * jnp.pi)
+        amplitude = c.max_slope / c.waves * wavelength / (2 * jnp.pi)  # each sine's steepest slope: max_slope / waves
+        altitude = jax.random.uniform(k[2], minval=c.altitude_range[0], maxval=c.altitude_range[1])
+        # the profile's mean: the commanded altitude over it at a depth in depth_range (the autopilot's depths)
+        mean = jax.random.uniform(k[4], minval=c.depth_range[0], maxval=c.depth_range[1]) - altitude
+        tops = mean + jnp.sum(amplitude * jnp.sin(2 * jnp.pi * centres[:, None] / wavelength + phase), axis=1)
+        speed = jax.random.uniform(k[3], minval=c.speed_range[0], maxval=c.speed_range[1])
+        zero = jnp.zeros(())
+        return TerrainTask(altitude=altitude, heading=zero, speed=speed, yaw=zero, tops=tops,
+                           ground=self.seabed(tops, zero), xy=jnp.zeros(2), held=altitude + self._dvl[2])  # level, at the set-point
+
+    def arrange_scene(self, params, task: TerrainTask):
+        n = task.tops.shape[0]
+        centres = FIRST_BLOCK_X + BLOCK_LENGTH * (jnp.arange(n) + 0.5)
+        return params.replace(layout=jnp.stack([centres, jnp.zeros(n), task.tops - BLOCK_HALF_HEIGHT], axis=-1))
+
+    def fit_task(self, rng, task: TerrainTask, params, current, start) -> TerrainTask:
+        """The speed set-point fitted to the episode's current (`cruising.speeds_through_water`);
+        unchanged without one."""
+        if self.config.current.mode == "off":
+            return task
+        return task.replace(speed=speeds_through_water(self.config, task.speed, current_drift(self.config, current.mean)))
+
+    def _initial_pose(self, rng, task: TerrainTask) -> VehicleState:
+        c = self.config
+        k = jax.random.split(rng, 3)
+        z = task.ground + task.altitude + jax.random.uniform(k[0], minval=-c.start_altitude_error, maxval=c.start_altitude_error)
+        yaw = task.heading + jax.random.uniform(k[1], minval=-c.start_heading_error, maxval=c.start_heading_error)
+        speed = jax.random.uniform(k[2], minval=c.speed_range[0], maxval=c.speed_range[1])
+        return self.cruising_state(jnp.zeros(3).at[2].set(z), (0.0, 0.0, yaw), speed)
+
+    def advance_task(self, task: TerrainTask, vs: VehicleState, info) -> TerrainTask:
+        """The seabed below the vehicle now, and the altimeter's last valid altitude (its reading of the
+        step before: the sensors read after this)."""
+        reading = info["scene_sensors"]["altimeter"].reading
+        return task.replace(ground=self.seabed(task.tops, vs.position[0]), xy=vs.position[:2],
+                            held=jnp.where(reading.lock, reading.altitude, task.held))
+
+    def set_point(self, info, upcoming: bool = False):
+        """(world z m at the commanded altitude over the seabed below the vehicle, heading rad, speed m/s)."""
+        task: TerrainTask = info["task"]
+        return task.ground + task.altitude, task.heading, task.speed
+
+    def target_position(self, info) -> jnp.ndarray:
+        """The point at the commanded altitude over the seabed below the vehicle (m, world)."""
+        task: TerrainTask = info["task"]
+        return jnp.concatenate([task.xy, (task.ground + task.altitude)[None]])
+
+    def measured_altitude(self, vs: VehicleState, info) -> jnp.ndarray:
+        """The altitude (m) as the vehicle measures it: the altimeter's (the last valid one without
+        bottom lock), along the DVL's axis from its head, turned vertical and moved to the origin."""
+        reading = info["scene_sensors"]["altimeter"].reading
+        along_axis = jnp.where(reading.lock, reading.altitude, info["task"].held)
+        up = quat_to_mat(vs.quaternion)[2, :]  # world up in the body frame
+        return along_axis * up[2] - up @ self._dvl
+
+    def integral_error(self, vs: VehicleState, info) -> jnp.ndarray:
+        """The measured altitude error as world z (m) and the heading error (rad)."""
+        task: TerrainTask = info["task"]
+        return super().integral_error(vs, info).at[2].set(task.altitude - self.measured_altitude(vs, info))
+
+    def observe(self, vs: VehicleState, info, action):
+        task: TerrainTask = info["task"]
+        error = task.altitude - self.measured_altitude(vs, info)
+        obs = super().observe(vs, info, action)
+        fields = self.task_observation_fields()
+        obs = obs.at[fields["depth_error"]].set(jnp.clip(error, -self.config.depth_clip, self.config.depth_clip))
+        return obs.at[fields["set_point_depth"]].set((vs.position[2] + error) / 10.0)
+
+    def clearance(self, vs: VehicleState, tops: jnp.ndarray) -> jnp.ndarray:
+        """Height (m) of the hull's lowest point above the seabed: the least over the collision
+        capsules' ends of their bottom above the block below them."""
+        rot = quat_to_mat(vs.quaternion)
+        ends = vs.position + jnp.concatenate([self._hull.a, self._hull.b]) @ rot.T
+        radius = jnp.concatenate([self._hull.radius, self._hull.radius])
+        return jnp.min(ends[:, 2] - radius - self.seabed(tops, ends[:, 0]))
+
+    def errors(self, vs: VehicleState, info):
+        gap = self.clearance(vs, info["task"].tops)
+        return {**super().errors(vs, info), "collision": (gap < 0).astype(jnp.float32), "clearance": gap}
+
+    def failed(self, errors):
+        return errors["collision"] > 0
+
+    def reward_terms(self, vs: VehicleState, info, action):
+        return {**super().reward_terms(vs, info, action), "collision": -(self.clearance(vs, info["task"].tops) < 0).astype(jnp.float32)}
+

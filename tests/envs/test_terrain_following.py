@@ -1,0 +1,154 @@
+"""Terrain following: a seabed of blocks drawn per episode, the altitude measured by the altimeter in
+the MJX scene, the hull touching the seabed ending the episode, the classical autopilot on the
+altimeter holding the altitude, and the autopilot's policy able to start it."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import marinejax as mj
+from marinejax.controllers import TorpedoAutopilotConfig, torpedo_autopilot
+from marinejax.envs.terrain_following import BLOCK_LENGTH, FIRST_BLOCK_X
+from marinejax.errors import UserError
+from marinejax.frames import quat_to_mat
+from marinejax.statistics import rollout_controller
+from marinejax.train.paths import plot_paths
+
+ENV = "Remus100-TerrainFollowing"
+
+
+@pytest.fixture(scope="module")
+def env():
+    return mj.make(ENV)
+
+
+@pytest.fixture(scope="module")
+def resets(env):
+    return jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 32))
+
+
+def test_the_seabed_is_drawn_per_episode_within_its_slope_and_the_scene_holds_it(env, resets):
+    c = env.config
+    tops = np.asarray(resets.info["task"].tops)
+    assert tops.shape == (32, len(c.movable_geoms))
+    assert np.ptp(tops[:, 0]) > 0.1  # another seabed per episode
+    # a sum of sines with steepest slope max_slope: no step between blocks steeper than that
+    assert np.max(np.abs(np.diff(tops, axis=1))) <= c.max_slope * BLOCK_LENGTH + 1e-4
+    assert np.max(np.abs(np.diff(tops, axis=1))) > 0.5 * c.max_slope * BLOCK_LENGTH / c.waves
+    layout = np.asarray(resets.info["params"].layout)
+    np.testing.assert_allclose(layout[..., 2] + 10.0, tops, atol=1e-5)  # the blocks' tops, 10 m above their centres
+    np.testing.assert_allclose(layout[0, :, 0], FIRST_BLOCK_X + BLOCK_LENGTH * (np.arange(32) + 0.5))
+    model, _ = env.plant.world(jax.tree.map(lambda x: x[0], resets.info["params"]), jax.tree.map(lambda x: x[0], resets.pipeline_state))
+    np.testing.assert_allclose(np.asarray(model.geom_pos)[np.asarray(env.plant.sys.layout_ids)], layout[0])
+
+
+def test_the_vehicle_starts_at_the_commanded_altitude_and_measures_it_with_the_altimeter(env, resets):
+    """Level at x = 0 at the set-point ± start_altitude_error; an ideal altimeter with one beam straight
+    down (measuring from its head, 0.2 m ahead of and 0.095 m below the origin: over the same block)
+    gives the true altitude, which the observation's depth error and depth set-point are made of."""
+    c = env.config
+    task, z = resets.info["task"], np.asarray(resets.pipeline_state.physics.data.qpos[:, 2])
+    altitude = z - np.asarray(task.ground)
+    assert np.all(np.abs(altitude - np.asarray(task.altitude)) <= c.start_altitude_error + 1e-5)
+    assert np.all((np.asarray(task.altitude) >= c.altitude_range[0]) & (np.asarray(task.altitude) <= c.altitude_range[1]))
+    exact = mj.make(ENV, sensors={"altimeter": {"ideal": True, "beams": 1, "beam_angle": 0.0}})
+    states = jax.jit(jax.vmap(exact.reset))(jax.random.split(jax.random.PRNGKey(0), 32))
+    reading = states.info["scene_sensors"]["altimeter"].reading
+    head = exact.config.sensors.altimeter.position
+    assert head[0] < 2.0 and head[2] < 0  # the REMUS 100's DVL (its MJCF file): over the first block
+    np.testing.assert_allclose(np.asarray(reading.altitude), altitude + head[2], atol=1e-4)
+    f = exact.observation_fields()
+    np.testing.assert_allclose(np.asarray(states.obs[:, f["depth_error"]])[:, 0], np.asarray(task.altitude) - altitude, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(states.obs[:, f["set_point_depth"]])[:, 0] * 10,
+                               np.asarray(task.ground + task.altitude), atol=1e-4)
+    # the errors are the true altitude's
+    np.testing.assert_allclose(np.asarray(states.metrics["position_error"]), np.abs(np.asarray(task.altitude) - altitude), atol=1e-4)
+
+
+def test_without_bottom_lock_the_last_valid_altitude_is_held(env):
+    """An altimeter that loses every update after the first: the observed altitude error stays the
+    start's while the vehicle climbs away."""
+    lost = mj.make(ENV, sensors={"altimeter": {"dropout": 0.999999}})
+    state = jax.jit(lost.reset)(jax.random.PRNGKey(3))
+    assert not bool(state.info["scene_sensors"]["altimeter"].reading.lock)  # the first update lost too
+    f = lost.observation_fields()
+    first = float(state.obs[f["depth_error"]][0])
+    np.testing.assert_allclose(first, 0.0, atol=1e-6)  # held: the set-point's reading, level
+    step = jax.jit(lost.step)
+    for _ in range(20):
+        state = step(state, jnp.array([0.0, -1.0, 0.5]))  # stern planes nose up: climbing
+    assert float(state.metrics["position_error"]) > 0.3  # the true altitude changed
+    # the observed one is still the first reading (along the DVL's axis), only turned by the attitude
+    task = state.info["task"]
+    np.testing.assert_allclose(float(task.held), float(task.altitude) + lost.config.sensors.altimeter.position[2], atol=1e-6)
+    up = np.asarray(quat_to_mat(state.pipeline_state.physics.data.qpos[3:7]))[2]
+    measured = float(task.held) * up[2] - up @ np.asarray(lost.config.sensors.altimeter.position)
+    np.testing.assert_allclose(float(state.obs[f["depth_error"]][0]), float(task.altitude) - measured, atol=1e-4)
+
+
+def test_touching_the_seabed_ends_the_episode_with_the_collision_penalty():
+    """Started 5 cm above the seabed (the hull's radius is about 9.5 cm): the first step is a collision."""
+    low = mj.make(ENV, altitude_range=(0.05, 0.06), start_altitude_error=0.0)
+    state = jax.jit(low.reset)(jax.random.PRNGKey(0))
+    state = jax.jit(low.step)(state, jnp.zeros(low.action_size))
+    assert float(state.metrics["collision"]) == 1.0 and float(state.done) == 1.0
+    assert float(state.metrics["clearance"]) < 0
+    assert float(state.metrics["reward/collision"]) == -low.config.reward.collision
+    assert float(state.metrics["window_error"]) == low.config.max_distance
+
+
+def test_the_classical_autopilot_on_the_altimeter_follows_the_terrain(env, tmp_path):
+    """The torpedo autopilot reading the task's observation (its depth error: the measured altitude's)
+    holds the altitude over 16 episodes without touching the seabed; the plot shows it from the side
+    over the blocks."""
+    out = rollout_controller(env, torpedo_autopilot(env, TorpedoAutopilotConfig(depth_gain=0.8)), 16, seed=5)
+    window = np.asarray(env.error_window(out["time"]))
+    assert np.mean(out["error"][:, window]) < 0.2
+    assert np.max(out["collision"]) == 0 and np.max(out["done"]) == 0
+    # the reference is the commanded altitude over the block below the vehicle
+    x, z = out["position"][..., 0], out["position"][..., 2]
+    tops = out["layout"][:, :, 2] + out["layout_size"][None, :, 2]
+    below = np.take_along_axis(tops, np.clip(np.floor((x - FIRST_BLOCK_X) / BLOCK_LENGTH).astype(int), 0, 31), axis=1)
+    np.testing.assert_allclose(out["error"], np.abs(out["target"][..., 2] - z), atol=1e-4)
+    np.testing.assert_allclose(out["target"][..., :2], out["position"][..., :2], atol=1e-5)
+    commanded = out["target"][..., 2] - below  # the altitude set-point, the same all episode
+    assert np.all(np.ptp(commanded, axis=1) < 1e-4)
+    assert np.all((commanded >= env.config.altitude_range[0] - 1e-4) & (commanded <= env.config.altitude_range[1] + 1e-4))
+    assert out["layout_box"].all()
+    assert plot_paths(out, "terrain", tmp_path / "paths.png").stat().st_size > 10_000
+
+
+def test_the_autopilot_policy_can_start_it():
+    """The observation extends the autopilot's: every field of the autopilot's is in terrain
+    following's with its size, so `--ppo init_from=Remus100-Autopilot` can start it; the altimeter's
+    and the sonar's are new (first-layer weights 0)."""
+    from marinejax.train.ppo import input_rows
+
+    source, env = mj.make("Remus100-Autopilot"), mj.make(ENV)
+    rows = input_rows(source, env, "Remus100-Autopilot")
+    f = env.observation_fields()
+    new = np.nonzero(rows < 0)[0]
+    np.testing.assert_array_equal(new, np.arange(f["altimeter"].start, f["sonar"].stop))
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(UserError, match="'segments' must be 1"):
+        mj.make(ENV, segments=2)
+    with pytest.raises(UserError, match="'sensors.altimeter.enabled' must be true"):
+        mj.make(ENV, sensors={"altimeter": {"enabled": False}})
+    with pytest.raises(UserError, match="altitude_range"):
+        mj.make(ENV, altitude_range=(3.0, 1.0))
+    assert "BlueROV2-TerrainFollowing" not in mj.list_envs() and "Remus100-TerrainFollowingDisturbed" in mj.list_envs()
+
+
+def test_under_a_current_the_speed_through_the_water_stays_within_its_range():
+    disturbed = mj.make("Remus100-TerrainFollowingDisturbed")
+    states = jax.jit(jax.vmap(disturbed.reset))(jax.random.split(jax.random.PRNGKey(1), 64))
+    lo, hi = disturbed.config.speed_range
+    current = np.asarray(states.pipeline_state.current.mean)
+    drift = np.linalg.norm(current[:, :2], axis=1) + 2 * 2**0.5 * disturbed.config.current.ou_sigma
+    speed = np.asarray(states.info["task"].speed)
+    assert np.all(speed >= lo + drift - 1e-5) and np.all(speed <= hi - drift + 1e-5)
