@@ -100,6 +100,19 @@ def test_touching_the_seabed_ends_the_episode_with_the_collision_penalty():
     assert float(state.metrics["window_error"]) == low.config.max_distance
 
 
+def test_leaving_the_transect_line_ends_the_episode():
+    """With a corridor of 1 m, full rudder takes the vehicle off the line: a failure."""
+    narrow = mj.make(ENV, max_cross_track=1.0)
+    state = jax.jit(narrow.reset)(jax.random.PRNGKey(0))
+    step = jax.jit(narrow.step)
+    for i in range(100):
+        state = step(state, jnp.array([1.0, 0.0, 0.5]))
+        if float(state.done):
+            break
+    assert 1.0 < float(state.metrics["cross_track_error"]) < 1.5 and float(state.metrics["collision"]) == 0
+    assert float(state.metrics["window_error"]) == narrow.config.max_distance
+
+
 def test_the_classical_autopilot_on_the_altimeter_follows_the_terrain(env, tmp_path):
     """The torpedo autopilot reading the task's observation (its depth error: the measured altitude's)
     holds the altitude over 16 episodes without touching the seabed; the plot shows it from the side

@@ -26,9 +26,11 @@ Observation: the autopilot's (`autopilot` module docstring), so its policy can s
 and the integral of that altitude error, then the altimeter's altitude and the sonar's ranges
 (scene sensors, appended by the base).
 Statistics: `position_error` is the altitude error |set-point − altitude| (m), with `heading_error_deg`,
-`speed_error` (m/s), `collision` (1: the hull touched the seabed, which ends the episode) and
-`clearance` (m, the hull's lowest point above the seabed); the evaluation window is the episode after
-its first `settle` s. Reward: the autopilot's terms on the altitude error, and `collision`.
+`speed_error` (m/s), `collision` (1: the hull touched the seabed, which ends the episode),
+`clearance` (m, the hull's lowest point above the seabed) and `cross_track_error` (m off the transect
+line y = 0; beyond `max_cross_track` the episode ends, a failure: the seabed varies along x only);
+the evaluation window is the episode after its first `settle` s; an episode succeeds below 0.2 m.
+Reward: the autopilot's terms on the altitude error, and `collision`.
 """
 
 from __future__ import annotations
@@ -77,6 +79,10 @@ class TerrainFollowingConfig(AutopilotConfig):
     wavelength: tuple[float, float] = (20.0, 60.0)  # m
     waves: int = 3
     max_distance: float = 10.0  # m of altitude error: the episode terminates beyond
+    # m off the transect line (world y = 0): beyond, the vehicle has left the survey line, a failure. The
+    # seabed varies along x only, so flying across it would make the altitude easy (a seed flew 115° off
+    # the heading); wide enough for a cross current's drift while holding the heading (0.3 m/s x 60 s)
+    max_cross_track: float = 30.0
     # at most 0.3 m/s (the autopilot's 0.5 m/s would leave no speed range within 1-2 m/s through the water)
     current: CurrentConfig = CurrentConfig(speed=(0.0, 0.3), max_elevation_deg=0.0)
     # the DVL's beams (altitude) and a sonar fan of 8 beams over 40°, 20° down: it meets a seabed 2 m
@@ -92,7 +98,7 @@ class TerrainFollowingConfig(AutopilotConfig):
         super().__post_init__()
         check_range("altitude_range", self.altitude_range, positive=True)
         check_range("wavelength", self.wavelength, positive=True)
-        for name in ("settle", "start_altitude_error", "start_heading_error", "max_slope"):
+        for name in ("settle", "start_altitude_error", "start_heading_error", "max_slope", "max_cross_track"):
             if not getattr(self, name) >= 0:
                 raise UserError(f"config '{name}' must be >= 0, got {getattr(self, name)}")
         if self.segments != 1:
@@ -120,7 +126,8 @@ class TerrainTask:
 class TerrainFollowing(Autopilot):
     config_class = TerrainFollowingConfig
     error_window_description = "after the first `settle` s of each episode"
-    error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m"})
+    error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m", "cross_track_error": "m"})
+    success_threshold_m = 0.2  # m of mean altitude error (issue #24's target); a contact ends the episode, a failure
 
     def __init__(self, vehicle, config: TerrainFollowingConfig):
         super().__init__(vehicle, config)
@@ -223,10 +230,12 @@ class TerrainFollowing(Autopilot):
 
     def errors(self, vs: VehicleState, info):
         gap = self.clearance(vs, info["task"].tops)
-        return {**super().errors(vs, info), "collision": (gap < 0).astype(jnp.float32), "clearance": gap}
+        return {**super().errors(vs, info), "collision": (gap < 0).astype(jnp.float32), "clearance": gap,
+                "cross_track_error": jnp.abs(vs.position[1])}
 
     def failed(self, errors):
-        return errors["collision"] > 0
+        """The hull touched the seabed, or the vehicle left the transect by more than `max_cross_track` m."""
+        return (errors["collision"] > 0) | (errors["cross_track_error"] > self.config.max_cross_track)
 
     def reward_terms(self, vs: VehicleState, info, action):
         return {**super().reward_terms(vs, info, action), "collision": -(self.clearance(vs, info["task"].tops) < 0).astype(jnp.float32)}
