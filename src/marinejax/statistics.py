@@ -31,8 +31,8 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     error (E, T), done (E, T), actuators (E, T, n: the actuator states, physical units), and (E, T)
     each of the task's other errors (`MarineEnv.error_names`: heading_error_deg, and e.g. speed_error).
     In a scene with movable geoms also layout (E, k, 3, m, world: where they were), layout_size
-    (k, 3, the geoms' MuJoCo sizes) and layout_box (k, bool: a box, whose sizes are half-lengths); with scene sensors each one's observation, e.g. sonar (E, T,
-    beams, m) and altimeter (E, T, 1, m).
+    (k, 3, the geoms' MuJoCo sizes) and layout_box (k, bool: a box, whose sizes are half-lengths);
+    with scene sensors each one's observation, e.g. sonar (E, T, beams, m) and altimeter (E, T, 1, m).
     """
     steps = env.config.episode_length
     others = [name for name in env.error_names if name != "position_error"]
