@@ -133,6 +133,8 @@ class TerrainFollowing(Autopilot):
         super().__init__(vehicle, config)
         self._hull = collision_capsules(self.vehicle.mj_model, self.plant.sys.body_id, self.vehicle.name)
         self._dvl = jnp.asarray(config.sensors.altimeter.position, jnp.float32)
+        # world x of the blocks' centres, in the order of `movable_geoms`
+        self._centres = jnp.asarray(FIRST_BLOCK_X + BLOCK_LENGTH * (np.arange(len(config.movable_geoms)) + 0.5), jnp.float32)
         sizes = self.vehicle.mj_model.geom_size[np.asarray(self.plant.sys.layout_ids, int)]
         if not np.allclose(sizes[:, 0], BLOCK_LENGTH / 2) or not np.allclose(sizes[:, 2], BLOCK_HALF_HEIGHT):
             raise UserError(f"terrain following needs blocks {BLOCK_LENGTH} m long and {2 * BLOCK_HALF_HEIGHT} m tall (the "
@@ -149,23 +151,20 @@ class TerrainFollowing(Autopilot):
     def _sample_task(self, rng):
         c = self.config
         k = jax.random.split(rng, 5)
-        centres = FIRST_BLOCK_X + BLOCK_LENGTH * (jnp.arange(len(c.movable_geoms)) + 0.5)
         wavelength = jax.random.uniform(k[0], (c.waves,), minval=c.wavelength[0], maxval=c.wavelength[1])
         phase = jax.random.uniform(k[1], (c.waves,), maxval=2 * jnp.pi)
         amplitude = c.max_slope / c.waves * wavelength / (2 * jnp.pi)  # each sine's steepest slope: max_slope / waves
         altitude = jax.random.uniform(k[2], minval=c.altitude_range[0], maxval=c.altitude_range[1])
         # the profile's mean: the commanded altitude over it at a depth in depth_range (the autopilot's depths)
         mean = jax.random.uniform(k[4], minval=c.depth_range[0], maxval=c.depth_range[1]) - altitude
-        tops = mean + jnp.sum(amplitude * jnp.sin(2 * jnp.pi * centres[:, None] / wavelength + phase), axis=1)
+        tops = mean + jnp.sum(amplitude * jnp.sin(2 * jnp.pi * self._centres[:, None] / wavelength + phase), axis=1)
         speed = jax.random.uniform(k[3], minval=c.speed_range[0], maxval=c.speed_range[1])
         zero = jnp.zeros(())
         return TerrainTask(altitude=altitude, heading=zero, speed=speed, yaw=zero, tops=tops,
                            ground=self.seabed(tops, zero), xy=jnp.zeros(2), held=altitude + self._dvl[2])  # level, at the set-point
 
     def arrange_scene(self, params, task: TerrainTask):
-        n = task.tops.shape[0]
-        centres = FIRST_BLOCK_X + BLOCK_LENGTH * (jnp.arange(n) + 0.5)
-        return params.replace(layout=jnp.stack([centres, jnp.zeros(n), task.tops - BLOCK_HALF_HEIGHT], axis=-1))
+        return params.replace(layout=jnp.stack([self._centres, jnp.zeros_like(task.tops), task.tops - BLOCK_HALF_HEIGHT], axis=-1))
 
     def fit_task(self, rng, task: TerrainTask, params, current, start) -> TerrainTask:
         """The speed set-point fitted to the episode's current (`cruising.speeds_through_water`);
