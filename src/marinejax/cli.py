@@ -413,7 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
     idf.add_argument("log", help="CSV log (see marinejax.identify for the columns)")
     idf.add_argument("--vehicle", required=True, help="vehicle name whose parameters are the starting point")
     idf.add_argument("--out", default=None, help="parameter-set JSON to write (default <log>-params.json), usable as --env param_set=PATH")
-    idf.add_argument("--window", type=float, default=1.0, help="seconds per multiple-shooting window (default 1)")
+    idf.add_argument("--window", type=float, default=1.0, help="seconds per multiple-shooting window (default 1; the fit first runs on windows of half that)")
     idf.add_argument("--fit-thruster-gain", action="store_true", help="also fit the thruster gain (not separable from the masses; see the docs)")
 
     ls = sub.add_parser("list", parents=[common], help="what exists: vehicles, tasks, envs, controllers, shipped policies")

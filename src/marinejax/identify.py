@@ -34,10 +34,13 @@ the variables). Short windows keep the rollouts from diverging, so long logs and
 directions do not blow up the fit. The optimiser is Levenberg–Marquardt on the Jacobian that JAX
 gives through the rollout (24 parameters plus 8 per window; the windows' starts are eliminated
 from each step by the Schur complement, as in bundle adjustment; faster and more precise here than
-first-order methods such as optax's Adam), with every parameter kept within physical bounds.
-Uncertainty: the Gauss–Newton covariance σ² (Schur complement)⁻¹ at the optimum, σ² the mean
-squared normalised residual; a parameter whose standard deviation exceeds 10 % of its scale is
-reported as not determined by the log (relative to the larger of its value and its scale).
+first-order methods such as optax's Adam), with every parameter kept within physical bounds. The
+fit runs twice: on windows of half the length from the defaults, then on `window` from there
+(shorter windows are closer to linear in the parameters, which keeps a start far from the truth out
+of local minima; `Identifier.fit`). Uncertainty: the Gauss–Newton covariance σ² (Schur
+complement)⁻¹ at the optimum, σ² the mean squared normalised residual; a parameter whose standard
+deviation exceeds 10 % of its scale is reported as not determined by the log (relative to the
+larger of its value and its scale).
 
 What a log cannot determine: scaling every force (thrust, damping, buoyancy moment) and the total
 mass (rigid + added) by one factor leaves the motion unchanged, with the displaced volume absorbing
@@ -232,6 +235,8 @@ _SCALE = np.concatenate([s for _, _, s, _ in _FIT])
 _LOWER = np.concatenate([np.full(n, lo) for _, n, _, lo in _FIT])
 
 
+WINDOW_BATCH = 32  # windows simulated together (see Identifier.simulate)
+
 # Measurement noise per residual channel (body velocity 3 m/s, angular velocity 3 rad/s, roll and
 # pitch rad): the sensor models' size (DVL at 0.5 m/s, gyro, attitude estimate).
 _NOISE = np.array([0.006] * 3 + [0.002] * 3 + [0.0035] * 2)
@@ -250,6 +255,7 @@ class FitResult:
     cost_after: float
     seconds: float
     warning: str = ""  # why the fit or its uncertainty is incomplete (a singular system), else ""
+    steps: int = 0  # Levenberg–Marquardt steps that lowered the cost
 
 
 class Identifier:
@@ -264,7 +270,7 @@ class Identifier:
         if abs(log.dt - plant.config.control_dt) > 1e-3 * plant.config.control_dt:
             raise UserError(f"the log's period {log.dt:.4f} s differs from the control period {plant.config.control_dt} s; "
                             "resample the log or pass --env control_dt=...")
-        self.plant = plant
+        self.plant, self.log, self.window, self.fit_thruster_gain = plant, log, window, fit_thruster_gain
         self.steps = max(2, int(round(window / plant.config.control_dt)))
         valid = np.ones(len(log.time), bool) if log.dvl_valid is None else np.asarray(log.dvl_valid, bool)
         # windows start on rows with a DVL measurement (a row without one holds an older velocity)
@@ -332,7 +338,10 @@ class Identifier:
 
         if offset is None:
             offset = jnp.zeros((len(self.start_rows), 8))
-        return jax.vmap(window)(self.start, self.start_euler, offset, history[self.start_rows], self.commands)
+        # windows in batches: one vmap over every window of a long log (thousands of rollouts with
+        # their tangents) hangs XLA's CPU runtime (jax 0.10.2)
+        return jax.lax.map(lambda args: window(*args), (self.start, self.start_euler, offset, history[self.start_rows], self.commands),
+                           batch_size=WINDOW_BATCH)
 
     def _residuals(self, z: jnp.ndarray, offset: jnp.ndarray) -> jnp.ndarray:
         """(windows, steps · 8) normalised residuals; z: normalised parameters, offset: (windows, 8)."""
@@ -350,11 +359,33 @@ class Identifier:
         js = jax.jacfwd(lambda e: self._residuals(z, offset + e[None]))(jnp.zeros(8))
         return r, jz, js
 
-    def fit(self, iterations: int = 30, progress: Callable[[str], None] | None = None) -> FitResult:
+    def fit(self, iterations: int = 30, progress: Callable[[str], None] | None = None, coarse: bool = True,
+            start: np.ndarray | None = None, tolerance: float = 1e-6) -> FitResult:
         """Levenberg–Marquardt over the parameters and every window's start correction (each held to
         its measurement by a prior of the measurement noise), the starts eliminated per step (Schur
-        complement); the parameters' covariance accounts for the starts' uncertainty."""
+        complement); the parameters' covariance accounts for the starts' uncertainty.
+
+        `coarse`: first fit windows of half the length from the defaults, then these windows from
+        there (and, should that stall, also from the defaults, keeping the lower cost). Shorter
+        windows keep the residuals closer to linear in the parameters: from the defaults, 1 s
+        windows alone stopped in a local minimum (a linear damping at its zero bound, the quadratic
+        one too large) on a third of the Wu 2018 logs tried (docs/identification.md). `start`: parameter values (24,) to start from (default: the
+        plant's); `cost_before` is always the defaults' cost. The fit stops when a step lowers the
+        cost by less than `tolerance` times it (the first of two stages at 1e-3: it only has to
+        reach the basin the second refines)."""
         t0 = _time.perf_counter()
+        if coarse and start is None:
+            first = Identifier(self.plant, self.log, self.window / 2, self.fit_thruster_gain)
+            if first.steps < self.steps:
+                coarse_fit = first.fit(iterations, _prefixed(progress, first.window), coarse=False, tolerance=1e-3)
+                staged = self.fit(iterations, _prefixed(progress, self.window), coarse=False, start=coarse_fit.values)
+                if staged.steps == 0 or staged.cost_after > 2 * coarse_fit.cost_after:
+                    # stalled there (a few windows whose rollouts leave their measured starts within
+                    # the longer window can stop the first step): the longer windows from the
+                    # defaults too, and the better of the two
+                    plain = self.fit(iterations, _prefixed(progress, self.window, "from the defaults"), coarse=False)
+                    staged = min((staged, plain), key=lambda r: r.cost_after)
+                return dataclasses.replace(staged, seconds=_time.perf_counter() - t0)
         lower = (_LOWER - self.x0) / _SCALE  # bounds on z
         free = self.free
         z, offset = np.zeros(len(self.x0)), np.zeros((len(self.start_rows), 8))
@@ -372,7 +403,11 @@ class Identifier:
             gs = np.einsum("wri,wr->wi", js, r) + offset * prior**2
             return a_mat, g, b_mat, gs, np.einsum("wri,wrj->wij", jz, js)
 
+        steps = 0
         cost0 = cost = evaluate(z, offset)
+        if start is not None:
+            z = np.where(free, (np.asarray(start, float) - self.x0) / _SCALE, 0.0)
+            cost = evaluate(z, offset)
         lam = 1e-2
         for it in range(iterations):
             a_mat, g, b_mat, gs, e_mat = normal_equations(z, offset)
@@ -395,12 +430,12 @@ class Identifier:
                 cost_new = evaluate(z_new, offset_new)
                 if cost_new < cost:
                     improvement = cost - cost_new
-                    z, offset, cost, lam = z_new, offset_new, cost_new, max(lam / 3, 1e-7)
+                    z, offset, cost, lam, steps = z_new, offset_new, cost_new, max(lam / 3, 1e-7), steps + 1
                     break
                 lam *= 4
             if progress is not None:
                 progress(f"iteration {it + 1:2d}: cost {cost:.4g} (mean squared residual / noise²)")
-            if lam > 1e8 or improvement < 1e-6 * cost:
+            if lam > 1e8 or improvement < tolerance * cost:
                 break
         # covariance of the parameters, the starts eliminated: σ² (Schur complement)⁻¹
         warning = ""
@@ -417,7 +452,16 @@ class Identifier:
         std = std_z * _SCALE
         return FitResult(params=_unflatten(self.base, jnp.asarray(values, jnp.float32)), names=PARAMETER_NAMES,
                          initial=self.x0, values=values, std=std, determined=std < 0.1 * np.maximum(np.abs(values), _SCALE),
-                         fitted=free.copy(), cost_before=cost0, cost_after=cost, seconds=_time.perf_counter() - t0, warning=warning)
+                         fitted=free.copy(), cost_before=cost0, cost_after=cost, seconds=_time.perf_counter() - t0, warning=warning,
+                         steps=steps)
+
+
+def _prefixed(progress: Callable[[str], None] | None, window: float, note: str = "") -> Callable[[str], None] | None:
+    """`progress` with each line prefixed by the window length (and `note`)."""
+    if progress is None:
+        return None
+    prefix = f"{window:g} s windows{', ' + note if note else ''}, "
+    return lambda line: progress(prefix + line)
 
 
 def simulate_log(plant: Plant, params: PlantParams, commands: np.ndarray, seed: int = 0, noise: bool = True,

@@ -20,6 +20,27 @@ from marinejax.errors import UserError
 
 
 FIN_GEOMS = "marinejax:fin_geoms"  # MJCF custom text: "site:geom,geom site:geom ...", the geoms a fin site turns
+# The water: colour of the fog (linear RGBA) and the distances (m from the camera) over which it
+# thickens from clear to opaque; coastal water where a diver sees some 10-20 m.
+WATER_RGBA = (0.03, 0.22, 0.3, 1.0)
+FOG_START_M, FOG_END_M = 3.0, 30.0
+TRAIL_STEPS = 120  # steps of the vehicle's past drawn as its trail (about every 4th)
+
+
+def underwater(model: mujoco.MjModel) -> mujoco.MjModel:
+    """Give a model (in place; also returned) the look of the water for rendering only: fog of
+    WATER_RGBA from FOG_START_M to FOG_END_M (MuJoCo gives its fog distances in units of the model's
+    extent), no light casts shadows (a sun through metres of water casts none sharp, and shadow maps
+    over a 400 m seabed speckle), a dimmer, bluish headlight."""
+    extent = float(model.stat.extent)
+    model.vis.map.fogstart = FOG_START_M / extent
+    model.vis.map.fogend = FOG_END_M / extent
+    model.vis.rgba.fog[:] = WATER_RGBA
+    model.vis.rgba.haze[:] = WATER_RGBA
+    model.light_castshadow[:] = 0
+    model.vis.headlight.ambient[:] = (0.3, 0.36, 0.4)
+    model.vis.headlight.diffuse[:] = (0.55, 0.6, 0.6)
+    return model
 
 
 def fin_geoms(model: mujoco.MjModel) -> list[tuple[str, np.ndarray, np.ndarray]]:
@@ -42,16 +63,17 @@ def fin_geoms(model: mujoco.MjModel) -> list[tuple[str, np.ndarray, np.ndarray]]
 
 
 class FrameRenderer:
-    """Offscreen RGB frames (height, width, 3) uint8 of a vehicle from its 'chase' camera, with the
-    target drawn as a red sphere and an optional reference path as small grey dots; fins listed in
-    the MJCF's `marinejax:fin_geoms` turn with their deflection when `frame` is given the actuator states.
+    """Offscreen RGB frames (height, width, 3) uint8 of a vehicle from its 'chase' camera, under
+    water (`underwater`), with the target drawn as a red sphere, an optional reference path as small
+    grey dots and the vehicle's trail as yellow ones; fins listed in the MJCF's `marinejax:fin_geoms`
+    turn with their deflection when `frame` is given the actuator states.
 
     MuJoCo chooses its OpenGL backend when it is first imported: on a machine without a display,
     start Python with MUJOCO_GL=egl."""
 
     def __init__(self, model: mujoco.MjModel | str | Path, width: int = 640, height: int = 480, qpos_adr: int = 0):
         """model: the vehicle in its scene (`Vehicle.mj_model`, copied here) or a saved one (.mjb, .xml)."""
-        self.model = _load_model(model)
+        self.model = underwater(_load_model(model))
         self.qpos_adr = int(qpos_adr)  # where the vehicle's free joint starts in qpos (Vehicle.sys.qpos_adr)
         self.data = mujoco.MjData(self.model)
         self.fins = fin_geoms(self.model)
@@ -67,12 +89,14 @@ class FrameRenderer:
                 f"MuJoCo could not create an OpenGL context for rendering ({type(err).__name__}: {err}); on a machine "
                 "without a display set MUJOCO_GL=egl (or osmesa) before Python starts"
             ) from err
+        self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = 1
 
     def frame(self, position: np.ndarray, quaternion: np.ndarray, target: np.ndarray, path: np.ndarray | None = None,
-              fin_angles: dict[str, float] | None = None) -> np.ndarray:
+              fin_angles: dict[str, float] | None = None, trail: np.ndarray | None = None) -> np.ndarray:
         """The frame of the vehicle at world `position` (m) and `quaternion` (w, x, y, z, body → world)
-        with the target at world position `target` (m), the reference `path` (K, 3) if given, and the
-        fins turned by `fin_angles` (site name → deflection, rad)."""
+        with the target at world position `target` (m), the reference `path` (K, 3) and the vehicle's
+        `trail` (J, 3: world positions it passed, m) if given, and the fins turned by `fin_angles`
+        (site name → deflection, rad)."""
         for site, geoms, axis in self.fins:
             turn = np.zeros(4)
             mujoco.mju_axisAngle2Quat(turn, axis, float((fin_angles or {}).get(site, 0.0)))
@@ -84,7 +108,8 @@ class FrameRenderer:
         mujoco.mj_forward(self.model, self.data)
         self.renderer.update_scene(self.data, camera="chase")
         scene = self.renderer.scene
-        markers = [(target, 0.04, (0.9, 0.1, 0.1, 0.9))] + [(p, 0.012, (0.8, 0.8, 0.8, 0.6)) for p in (path if path is not None else [])]
+        markers = ([(target, 0.04, (0.9, 0.1, 0.1, 0.9))] + [(p, 0.012, (0.8, 0.8, 0.8, 0.6)) for p in (path if path is not None else [])]
+                   + [(p, 0.015, (1.0, 0.85, 0.2, 0.8)) for p in (trail if trail is not None else [])])
         for point, size, rgba in markers:
             if scene.ngeom >= scene.maxgeom:
                 break
@@ -110,13 +135,15 @@ def render_frames(model: mujoco.MjModel | str | Path, position: np.ndarray, quat
                   actuator_names: tuple[str, ...] = ()) -> list[np.ndarray]:
     """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m),
     and the actuator states (T, n) named `actuator_names` (fins' in rad) if given; the targets,
-    thinned to about 60 points, are drawn as the reference path."""
+    thinned to about 60 points, are drawn as the reference path, the last TRAIL_STEPS positions
+    (every 4th) as the vehicle's trail."""
     renderer = FrameRenderer(model, width, height, qpos_adr)
     try:
         path = targets[:: max(1, len(targets) // 60)]
         fins = [(site, list(actuator_names).index(site)) for site, _, _ in renderer.fins if site in actuator_names]
         angles = [{site: float(a[i]) for site, i in fins} for a in actuators] if actuators is not None else [None] * len(position)
-        return [renderer.frame(p, q, target, path, fin) for p, q, target, fin in zip(position, quaternion, targets, angles)]
+        return [renderer.frame(p, q, target, path, fin, position[max(0, t - TRAIL_STEPS) : t : 4])
+                for t, (p, q, target, fin) in enumerate(zip(position, quaternion, targets, angles))]
     finally:
         renderer.close()
 
