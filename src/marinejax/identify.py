@@ -379,10 +379,10 @@ class Identifier:
             if first.steps < self.steps:
                 coarse_fit = first.fit(iterations, _prefixed(progress, first.window), coarse=False, tolerance=1e-3)
                 staged = self.fit(iterations, _prefixed(progress, self.window), coarse=False, start=coarse_fit.values)
-                if staged.steps == 0 or staged.cost_after > 2 * coarse_fit.cost_after:
+                if staged.steps == 0:
                     # stalled there (a few windows whose rollouts leave their measured starts within
-                    # the longer window can stop the first step): the longer windows from the
-                    # defaults too, and the better of the two
+                    # the longer window stopped the first step on one log): the longer windows from
+                    # the defaults too, and the better of the two
                     plain = self.fit(iterations, _prefixed(progress, self.window, "from the defaults"), coarse=False)
                     staged = min((staged, plain), key=lambda r: r.cost_after)
                 return dataclasses.replace(staged, seconds=_time.perf_counter() - t0)
