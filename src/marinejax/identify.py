@@ -369,10 +369,11 @@ class Identifier:
         there (and, should that stall, also from the defaults, keeping the lower cost). Shorter
         windows keep the residuals closer to linear in the parameters: from the defaults, 1 s
         windows alone stopped in a local minimum (a linear damping at its zero bound, the quadratic
-        one too large) on a third of the Wu 2018 logs tried (docs/identification.md). `start`: parameter values (24,) to start from (default: the
-        plant's); `cost_before` is always the defaults' cost. The fit stops when a step lowers the
-        cost by less than `tolerance` times it (the first of two stages at 1e-3: it only has to
-        reach the basin the second refines)."""
+        one too large) on a third of the Wu 2018 logs tried (docs/identification.md).
+        `start`: parameter values (24,) to start from (default: the plant's); `cost_before` is
+        always the defaults' cost. The fit stops when a step lowers the cost by less than
+        `tolerance` times it (the first of two stages at 1e-3: it only has to reach the basin the
+        second refines)."""
         t0 = _time.perf_counter()
         if coarse and start is None:
             first = Identifier(self.plant, self.log, self.window / 2, self.fit_thruster_gain)
