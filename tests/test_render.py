@@ -47,7 +47,7 @@ def test_the_trail_and_the_target_are_drawn(renderer):
     assert with_trail[mask][:, 0].mean() > with_trail[mask][:, 2].mean()
 
 
-def test_an_episode_draws_its_past_as_the_trail(vehicle):
+def test_an_episode_draws_its_past_as_the_trail(vehicle, renderer):
     steps = 30
     position = np.stack([np.linspace(-3.0, 0.0, steps), np.zeros(steps), np.full(steps, -2.0)], 1)
     quaternion = np.tile([1.0, 0.0, 0.0, 0.0], (steps, 1))
@@ -55,9 +55,5 @@ def test_an_episode_draws_its_past_as_the_trail(vehicle):
                            width=160, height=120)
     assert len(frames) == steps and frames[0].shape == (120, 160, 3)
     # the first frame has no past; the last one has its trail behind the vehicle
-    renderer = FrameRenderer(vehicle.mj_model, width=160, height=120, qpos_adr=vehicle.sys.qpos_adr)
-    try:
-        bare = renderer.frame(position[-1], quaternion[-1], position[-1] + [0.0, 0.0, -30.0], position[::2] + [0.0, 0.0, -30.0])
-    finally:
-        renderer.close()
+    bare = renderer.frame(position[-1], quaternion[-1], position[-1] + [0.0, 0.0, -30.0], position + [0.0, 0.0, -30.0])  # the same path
     assert np.any(frames[-1] != bare)
