@@ -4,6 +4,7 @@ gradients, and their place in an env's observation."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax
@@ -233,3 +234,66 @@ def test_an_env_observes_them_and_a_vehicle_file_places_them():
     assert state.info["scene_sensors"]["sonar"].reading.ranges.shape == (32,)
     remus = marinejax.make("Remus100-Autopilot").config.sensors
     assert remus.sonar.position == (0.75, 0.0, 0.0) and remus.altimeter.max_range == 30.0
+
+
+# A new scene sensor, as a user adds one: one module (its config and class) and a field in a
+# subclass of SensorConfig; nothing in marinejax edited.
+@dataclasses.dataclass(frozen=True)
+class EchoSounderConfig:
+    enabled: bool = False
+    max_range: float = 40.0  # m
+
+    @property
+    def sensor(self) -> type:
+        return EchoSounder
+
+
+class EchoSounder:
+    """One beam straight down from the vehicle's origin, read every control step."""
+
+    observation_size = 1
+    field = ("m", "body", "echo sounder range, straight down")
+    period = 1
+
+    def __init__(self, config: EchoSounderConfig, control_dt: float):
+        self.config = config
+        self.directions = jnp.asarray([[0.0, 0.0, -1.0]])
+        self.mount = jnp.zeros(3)
+
+    def measure(self, cast, rng):
+        ranges, _hit = cast(self.mount, self.directions, self.config.max_range)
+        return ranges
+
+    def observe(self, reading):
+        return reading
+
+
+@dataclasses.dataclass(frozen=True)
+class SensorsWithEcho(SensorConfig):
+    echo: EchoSounderConfig = EchoSounderConfig()
+
+
+def test_a_new_scene_sensor_is_one_module_and_a_field():
+    """The echo sounder above joins the observation (its field, unit and frame in the layout) and
+    the task's info, reads the distance to the seabed, and changes no other sensor's reading."""
+    settings = {"scene": "seabed", "target_depth": -2.5, "reset.tilt": 0.0, "reset.angular_velocity": 0.0}
+    altimeter = AltimeterConfig(enabled=True)  # noisy, so a changed random stream would show
+    env = marinejax.make("BlueROV2Heavy-StationKeeping", sensors=SensorsWithEcho(altimeter=altimeter,
+                                                                                 echo=EchoSounderConfig(enabled=True)), **settings)
+    plain = marinejax.make("BlueROV2Heavy-StationKeeping", sensors=SensorConfig(altimeter=altimeter), **settings)
+    fields = env.observation_fields()
+    assert fields["echo"] == slice(plain.observation_size, plain.observation_size + 1)
+    assert env.observation_size == plain.observation_size + 1
+    assert {"name": "echo", "start": plain.observation_size, "stop": env.observation_size, "unit": "m", "frame": "body",
+            "meaning": "echo sounder range, straight down"} in env.observation_layout()
+    state, reference = env.reset(jax.random.PRNGKey(3)), plain.reset(jax.random.PRNGKey(3))
+    for _ in range(3):
+        state, reference = env.step(state, jnp.zeros(env.action_size)), plain.step(reference, jnp.zeros(plain.action_size))
+    z = float(state.pipeline_state.physics.data.qpos[2])
+    np.testing.assert_allclose(state.info["scene_sensors"]["echo"].reading, [z - SEABED_Z], atol=1e-4)
+    np.testing.assert_allclose(state.obs[fields["echo"]], z - SEABED_Z, atol=1e-4)
+    np.testing.assert_array_equal(state.info["scene_sensors"]["altimeter"].reading.ranges,
+                                  reference.info["scene_sensors"]["altimeter"].reading.ranges)
+    np.testing.assert_array_equal(state.obs[: plain.observation_size], reference.obs)
+    with pytest.raises(UserError, match="is a section"):
+        marinejax.make("BlueROV2Heavy-StationKeeping", sensors=EchoSounderConfig())

@@ -89,7 +89,7 @@ def _train(args: argparse.Namespace) -> int:
     from marinejax.train.hyperparams import tuned_config, with_overrides
     from marinejax.train.progress import TrainingProgress
     from marinejax.train.hyperparams import load_train_config
-    from marinejax.train.runner import check_devices, check_resumable, train, use_cpu_devices
+    from marinejax.train.runner import check_devices, check_resumable, train_and_evaluate, use_cpu_devices
 
     console = make_console()
     target = _check_target(args.target_error)
@@ -139,11 +139,30 @@ def _train(args: argparse.Namespace) -> int:
         from jax.experimental import multihost_utils
 
         multihost_utils.sync_global_devices("marinejax train")
+
+    def on_trained(summary: dict) -> None:
+        progress.stop()
+        if jax.process_index() > 0:
+            return
+        if summary.get("time_to_target"):
+            t = summary["time_to_target"]
+            console.print(f"target {target} m met at {t['step']:,} env steps, {t['elapsed']:.0f} s "
+                          f"(evaluation error {t['window_error']:.4f} m); training stopped there")
+        from marinejax.train.curves import plot_learning_curve
+
+        plot_learning_curve(run_dir)
+        if jax.process_count() > 1 and not args.no_eval:
+            console.print(f"several processes: evaluate the run in one process, `marinejax eval {run_dir}`")
+        elif not args.no_eval:
+            console.print("final evaluation (deterministic policy) ...")
+
     with TrainingProgress(console, config) as progress:
         try:
-            summary = train(config, run_dir, resume=bool(args.resume), on_eval=progress.update,
-                            target_error=target, devices=args.devices,
-                            trace_cache=None if args.no_compile_cache else trace_cache_dir(), wandb_project=args.wandb)
+            _summary, evaluation = train_and_evaluate(
+                config, run_dir, evaluate=not args.no_eval, episodes=args.episodes, video=not args.no_video,
+                on_trained=on_trained, resume=bool(args.resume), on_eval=progress.update, target_error=target,
+                devices=args.devices, trace_cache=None if args.no_compile_cache else trace_cache_dir(),
+                wandb_project=args.wandb)
         except KeyboardInterrupt:
             console.print(f"[yellow]interrupted[/yellow]: the newest checkpoint in {run_dir}/checkpoints is usable; "
                           f"continue with `marinejax train --resume {run_dir}`")
@@ -151,21 +170,8 @@ def _train(args: argparse.Namespace) -> int:
     if jax.process_index() > 0:
         console.print(f"process {jax.process_index()} of {jax.process_count()}: done; process 0 wrote {run_dir}")
         return 0
-    if summary.get("time_to_target"):
-        t = summary["time_to_target"]
-        console.print(f"target {target} m met at {t['step']:,} env steps, {t['elapsed']:.0f} s "
-                      f"(evaluation error {t['window_error']:.4f} m); training stopped there")
-    from marinejax.train.curves import plot_learning_curve
-
-    plot_learning_curve(run_dir)
-    if jax.process_count() > 1 and not args.no_eval:
-        # loading a checkpoint through orbax waits for every process, and the others have finished
-        console.print(f"several processes: evaluate the run in one process, `marinejax eval {run_dir}`")
-    elif not args.no_eval:
-        from marinejax.train.evaluate import evaluate_finished_run
-
-        console.print("final evaluation (deterministic policy) ...")
-        _print_eval(console, evaluate_finished_run(run_dir, summary, episodes=args.episodes, video=not args.no_video))
+    if evaluation is not None:
+        _print_eval(console, evaluation)
     console.print(f"run directory: {run_dir} (config.json, metrics.jsonl, checkpoints/, curve.png, summary.json, eval/)")
     return 0
 

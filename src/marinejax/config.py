@@ -31,9 +31,9 @@ def _check_value(path: str, old: Any, new: Any, variable_length: bool = False) -
     if dataclasses.is_dataclass(old):
         if isinstance(new, Mapping):
             return apply_overrides(old, new, prefix=path + ".")
-        if type(new) is type(old):
+        if isinstance(new, type(old)):  # the section itself, or a subclass's (one that adds a scene sensor)
             return new
-        raise UserError(f"config '{path}' is a section; pass a mapping of its fields, got {new!r}")
+        raise UserError(f"config '{path}' is a section; pass a mapping of its fields or a {type(old).__name__}, got {new!r}")
     if isinstance(old, bool):
         if not isinstance(new, bool):
             raise UserError(f"config '{path}' must be true or false, got {new!r}")

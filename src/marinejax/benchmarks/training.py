@@ -73,7 +73,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
     from marinejax.train.hyperparams import load_train_config, tuned_config, with_overrides
     from marinejax.train.curves import WINDOW_ERROR
     from marinejax.train.checkpoints import latest_checkpoint
-    from marinejax.train.runner import resumable, train
+    from marinejax.train.runner import resumable, train_and_evaluate
 
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
@@ -98,9 +98,8 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
             log(f"{env_name} seed {seed}: {r['step']:>10,} env steps, {r['elapsed']:6.0f} s, "
                 f"evaluation error {err if err is None else f'{err:.4f} m'}")
 
-        summary = train(config, run_dir, resume=resume, on_eval=on_eval, target_error=target, stop_at_target=stop_at_target,
-                        trace_cache=trace_cache)
-        evaluate_finished_run(run_dir, summary, episodes=episodes, video=False, latest=True)
+        summary, _ = train_and_evaluate(config, run_dir, episodes=episodes, video=False, latest=True, resume=resume, on_eval=on_eval,
+                                        target_error=target, stop_at_target=stop_at_target, trace_cache=trace_cache)
     ev, latest = summary["evaluation"], summary["evaluation_latest"]
     reached = summary.get("time_to_target") or {}
     return {

@@ -70,7 +70,6 @@ from marinejax.physics import VehicleState
 from marinejax.plant import Plant, PlantConfig, PlantParams, PlantState
 from marinejax.plant.current import CurrentState
 from marinejax.plant.estimator import estimated_state, estimator_init, estimator_update
-from marinejax.plant.scene_sensors import SCENE_SENSOR_FIELDS
 from marinejax.vehicle import Vehicle
 
 
@@ -151,8 +150,7 @@ OBSERVATION_FIELDS = {
                           "the ROV station's landing point minus the CG"),
     "integral_position": ("m s", "body", "leaky integral of the position error"),
     "integral_heading": ("rad s", "-", "leaky integral of the heading error"),
-    **SCENE_SENSOR_FIELDS,
-}
+}  # and each enabled scene sensor's field (`plant.scene_sensors`)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -447,11 +445,12 @@ class MarineEnv(Env):
 
     def observation_layout(self) -> list[dict[str, Any]]:
         """The observation array as data: per field its name, [start, stop), unit, frame and meaning
-        (`OBSERVATION_FIELDS`), in order (fields may overlap: tracking's first reference point is its
-        position error)."""
+        (`OBSERVATION_FIELDS` and the scene sensors'), in order (fields may overlap: tracking's first
+        reference point is its position error)."""
         fields = sorted(self.observation_fields().items(), key=lambda f: (f[1].start, f[1].stop))
-        return [{"name": name, "start": sl.start, "stop": sl.stop, "unit": OBSERVATION_FIELDS[name][0],
-                 "frame": OBSERVATION_FIELDS[name][1], "meaning": OBSERVATION_FIELDS[name][2]} for name, sl in fields]
+        described = {**OBSERVATION_FIELDS, **self.plant.scene_sensors.observation_fields()}
+        return [{"name": name, "start": sl.start, "stop": sl.stop, "unit": described[name][0],
+                 "frame": described[name][1], "meaning": described[name][2]} for name, sl in fields]
 
     @functools.cached_property
     def _task_observation_size(self) -> int:

@@ -46,6 +46,11 @@ class AltimeterConfig:
     def __post_init__(self):
         check_ray_sensor("sensors.altimeter", self)
 
+    @property
+    def sensor(self) -> type:
+        """The class that implements it (a scene sensor's config names it: `plant.scene_sensors`)."""
+        return Altimeter
+
 
 @struct.dataclass
 class AltimeterReading:
@@ -59,6 +64,7 @@ class Altimeter:
     """The beams of one vehicle's DVL; directions resolved here, `measure` pure."""
 
     observation_size = 1  # the altitude, m
+    field = ("m", "body", "altitude along the DVL's axis from its beams (max_range without bottom lock)")
 
     def __init__(self, config: AltimeterConfig, control_dt: float):
         self.config = config

@@ -4,33 +4,34 @@ off unless `enabled`.
 
 Unlike the navigation sensors (`sensors.py`, used in observation mode "sensors"), these are the
 only way a vehicle perceives its surroundings, so an enabled one works in either observation mode:
-the env appends its reading to the observation (field `<name>`, `SCENE_SENSOR_FIELDS`) and hands it
-to its task in `info["scene_sensors"][name]`.
+the env appends its reading to the observation (field `<name>`) and hands it to its task in
+`info["scene_sensors"][name]`.
 
-A sensor class has `measure(cast, rng) -> reading`, `observe(reading) -> (observation_size,)`,
-`period` (control steps per update) and `observation_size`; `cast` is the plant's ray cast bound
-to the vehicle's current state (`Plant.cast`). Here each sensor updates every `period` steps at a
-phase drawn per episode and holds its reading in between. Each draws its random numbers from the
-step's key folded with its name, so adding a sensor changes no other sensor's draws.
+A scene sensor is a section of the sensors config whose config has the property `sensor`: the class
+that implements it, constructed as `sensor(config, control_dt)`, with `measure(cast, rng) ->
+reading`, `observe(reading) -> (observation_size,)`, `period` (control steps per update),
+`observation_size` and `field` (unit, frame, meaning of its observation field); `cast` is the
+plant's ray cast bound to the vehicle's current state (`Plant.cast`). A new one is one module (its
+config and class) plus a field in a subclass of `SensorConfig` (`tests/test_scene_sensors.py` adds
+an echo sounder so). Here each sensor updates every `period` steps at a phase drawn per episode and
+holds its reading in between. Each draws its random numbers from the step's key folded with its
+name, so adding a sensor changes no other sensor's draws.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.plant.altimeter import Altimeter
-from marinejax.plant.sonar import Sonar
 
-SCENE_SENSORS = {"altimeter": Altimeter, "sonar": Sonar}  # name → class; its config is sensors.<name>
-# observation field of each: (unit, frame, meaning), as envs.base.OBSERVATION_FIELDS
-SCENE_SENSOR_FIELDS = {
-    "altimeter": ("m", "body", "altitude along the DVL's axis from its beams (max_range without bottom lock)"),
-    "sonar": ("m", "body", "sonar range per beam, right to left across the fan (max_range: no echo)"),
-}
+def scene_sensor_configs(config) -> dict[str, object]:
+    """The scene sensors' sections of the sensors config `config`, enabled or not: name → config."""
+    sections = {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+    return {name: section for name, section in sections.items() if hasattr(section, "sensor")}
 
 
 @struct.dataclass
@@ -45,11 +46,11 @@ def _key(rng: jax.Array, name: str) -> jax.Array:
 
 
 class SceneSensors:
-    """The enabled scene sensors of one vehicle (`sensors` config), in the order of `SCENE_SENSORS`."""
+    """The enabled scene sensors of one vehicle (`sensors` config), in the order of its sections."""
 
     def __init__(self, config, control_dt: float):
-        self.sensors = {name: cls(getattr(config, name), control_dt) for name, cls in SCENE_SENSORS.items()
-                        if getattr(config, name).enabled}
+        self.sensors = {name: section.sensor(section, control_dt) for name, section in scene_sensor_configs(config).items()
+                        if section.enabled}
 
     def __bool__(self) -> bool:
         return bool(self.sensors)
@@ -78,6 +79,10 @@ class SceneSensors:
 
     def observation_sizes(self) -> dict[str, int]:
         return {name: sensor.observation_size for name, sensor in self.sensors.items()}
+
+    def observation_fields(self) -> dict[str, tuple[str, str, str]]:
+        """Each sensor's observation field: name → (unit, frame, meaning)."""
+        return {name: sensor.field for name, sensor in self.sensors.items()}
 
     def observe(self, states: dict[str, HeldSensor]) -> jnp.ndarray:
         """The readings as one vector (the env appends it to the observation)."""

@@ -54,6 +54,11 @@ class SonarConfig:
     def __post_init__(self):
         check_ray_sensor("sensors.sonar", self, counts=("beams", "rows"))
 
+    @property
+    def sensor(self) -> type:
+        """The class that implements it (a scene sensor's config names it: `plant.scene_sensors`)."""
+        return Sonar
+
 
 @struct.dataclass
 class SonarReading:
@@ -63,6 +68,8 @@ class SonarReading:
 
 class Sonar:
     """The fan of one vehicle's sonar; directions resolved here, `measure` pure."""
+
+    field = ("m", "body", "sonar range per beam, right to left across the fan (max_range: no echo)")
 
     def __init__(self, config: SonarConfig, control_dt: float):
         self.config = config

@@ -41,16 +41,23 @@ class TrainingProgress:
         self.last_step, self.last_time = 0, 0.0
         self.best = None
         self.live = console.is_terminal
+        self._open = False  # the live display is showing
 
     def __enter__(self) -> "TrainingProgress":
         if self.live:
+            self._open = True
             self.progress.__enter__()
             self.task = self.progress.add_task("training", total=self.total, sps="-", ret="-", err="-")
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.live:
-            self.progress.__exit__(*exc)
+        self.stop(*exc)
+
+    def stop(self, *exc) -> None:
+        """Close the live display (once): training has ended."""
+        if self._open:
+            self._open = False
+            self.progress.__exit__(*(exc or (None, None, None)))
 
     def update(self, record: dict[str, Any]) -> None:
         step, elapsed = record["step"], record["elapsed"]

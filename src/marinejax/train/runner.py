@@ -258,3 +258,22 @@ def train(
     if status == "interrupted":
         raise KeyboardInterrupt
     return summary
+
+
+def train_and_evaluate(config: TrainConfig, run_dir: Path, *, evaluate: bool = True, episodes: int = 64, video: bool = True,
+                       latest: bool = False, on_trained: Callable[[dict[str, Any]], None] | None = None,
+                       **train_kwargs) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """`train` (its keyword arguments pass through), then the final evaluation of the finished run
+    (`evaluate.evaluate_finished_run`: the best checkpoint on `episodes` episodes, with `video`; the
+    latest too with `latest`), what `marinejax train` and `marinejax bench training` both do. No
+    evaluation without `evaluate` or with several processes (a checkpoint loaded through orbax waits
+    for every process, and the others have finished). `on_trained(summary)` runs between the two.
+    Returns the summary and the evaluation (None where there was none)."""
+    from marinejax.train.evaluate import evaluate_finished_run
+
+    summary = train(config, run_dir, **train_kwargs)
+    if on_trained is not None:
+        on_trained(summary)
+    if not evaluate or jax.process_count() > 1:
+        return summary, None
+    return summary, evaluate_finished_run(run_dir, summary, episodes=episodes, video=video, latest=latest)
