@@ -6,8 +6,8 @@ same load and the same harness; per env and batch the median env steps/s of each
                                          [--rounds 5] [--out FILE.json]
 
 BEFORE_SRC and AFTER_SRC are the `src` folders of two checkouts (e.g. a `git worktree` of the commit
-before a redesign, and this one). Timed per env and batch, each the median of 7 calls after
-compilation: `env_step` a jitted `lax.scan` of 20 vmapped `env.step` under uniform random actions
+before a redesign, and this one). Timed per env and batch by `benchmarks.common.time_calls` (the
+best of interleaved calls after compilation; the same code at both ends of the redesign compared here): `env_step` a jitted `lax.scan` of 20 vmapped `env.step` under uniform random actions
 in [−1, 1] drawn beforehand, `plant_step` the same of `env.plant.step` alone (actuators and physics). It
 uses only what both ends of a redesign have (`marinejax.make`, `reset`, `step`, `plant.step`), not
 `marinejax bench envs`, whose own harness may differ between the two.
@@ -28,11 +28,10 @@ STEPS = 20
 
 def measure(envs: list[str], batches: list[int]) -> list[dict]:
     """Run in the checkout's interpreter (PYTHONPATH): env steps/s of env.step and plant.step."""
-    import time
-
     import jax
 
     import marinejax
+    from marinejax.benchmarks.common import time_calls
 
     rows = []
     for name in envs:
@@ -53,15 +52,8 @@ def measure(envs: list[str], batches: list[int]) -> list[dict]:
 
                 return jax.lax.scan(body, s.pipeline_state, a)[0].physics.data.qpos
 
-            row = {"env": name, "batch": batch}
-            for part, f in (("env_step", full), ("plant_step", plant)):
-                jax.block_until_ready(f(state, actions))
-                times = []
-                for _ in range(7):
-                    t = time.perf_counter()
-                    jax.block_until_ready(f(state, actions))
-                    times.append(time.perf_counter() - t)
-                row[part] = batch * STEPS / statistics.median(times)
+            timed = time_calls({"env_step": lambda: full(state, actions), "plant_step": lambda: plant(state, actions)})
+            row = {"env": name, "batch": batch, **{part: batch * STEPS / t["seconds"] for part, t in timed.items()}}
             rows.append(row)
     return rows
 
