@@ -110,6 +110,78 @@ def test_a_box_appears_at_its_bearing_and_range(tmp_path):
     np.testing.assert_allclose(np.asarray(sonar.ranges)[[45, 46, 47]], expected, rtol=1e-5)
 
 
+def test_the_incidence_angle_of_each_geom_kind_is_the_closed_form_one(tmp_path):
+    """Rays at known geometry (`Plant.cast(incidence=True)`), against the closed forms: a sphere of
+    radius R met at b off its centre line, cos = √(1 − (b/R)²); the side of an upright capsule of
+    radius r likewise; a box's face met at 25° from its normal; the seabed plane met 40° from the
+    vertical; an ellipsoid on its long axis head on. A missed ray reads 0."""
+    r_sphere, r_capsule, b = 0.5, 0.3, 0.2
+    path = tmp_path / "shapes.xml"
+    path.write_text(
+        '<mujoco><option><flag contact="disable" constraint="disable"/></option><worldbody>'
+        '<geom name="seabed" type="plane" pos="0 0 -10" size="50 50 0.1"/>'
+        f'<geom name="sphere" type="sphere" pos="5 0 0" size="{r_sphere}"/>'
+        f'<geom name="capsule" type="capsule" pos="0 5 0" size="{r_capsule} 1"/>'
+        '<geom name="box" type="box" pos="-5 0 0" euler="0 0 25" size="0.3 1 1"/>'
+        '<geom name="ellipsoid" type="ellipsoid" pos="0 -5 0" euler="0 0 90" size="1 0.3 0.2"/>'
+        "</worldbody></mujoco>")
+    plant = _plant(str(path))
+    state, _ = _state(plant, [0.0, 0.0, 0.0])
+    tilt = math.radians(40.0)
+    directions = jnp.asarray([
+        [5.0, b, 0.0],  # passes b from the sphere's centre
+        [b * 5.0 / math.sqrt(25.0 - b**2), 5.0, 0.0],  # b from the capsule's axis
+        [-1.0, 0.0, 0.0],  # onto the box's face, whose normal is turned 25° from −x
+        [math.sin(tilt), 0.0, -math.cos(tilt)],  # the seabed, 10 m down (the sphere is above the ray)
+        [0.0, -1.0, 0.0],  # the ellipsoid's long axis, turned onto y
+        [0.0, 0.0, 1.0],  # up: nothing
+    ], jnp.float32)
+    directions = directions / jnp.linalg.norm(directions, axis=-1, keepdims=True)
+    cast = jax.jit(lambda s: plant.cast(plant.nominal_params(), s)(jnp.zeros(3), directions, 50.0, incidence=True))
+    dist, hit, cos = (np.asarray(x) for x in cast(state))
+    assert hit.tolist() == [True] * 5 + [False]
+    expected = [math.sqrt(1 - (b / r_sphere) ** 2), math.sqrt(1 - (b / r_capsule) ** 2), math.cos(math.radians(25.0)),
+                math.cos(tilt), 1.0, 0.0]
+    np.testing.assert_allclose(cos, expected, atol=2e-4)
+    np.testing.assert_allclose(dist[3], 10.0 / math.cos(tilt), rtol=1e-5)
+
+
+def test_echo_intensity_is_lamberts_law_of_the_nearest_echo_in_each_beam(seabed):
+    """With `intensity`, each beam's echo intensity is cos² of the incidence angle of its nearest
+    echo (over the flat seabed: the ray whose range is reported), 0 for a beam without an echo, and
+    the observation holds the ranges (field `sonar`), then the intensities (`sonar_intensity`)."""
+    plant = _plant("seabed", sonar={"ideal": True, "intensity": True})
+    state, vs = _state(plant, [1.0, -2.0, -3.0], roll=0.2, pitch=0.1, yaw=0.7)
+    sonar = plant.scene_sensors.sensors["sonar"]
+    reading = _readings(plant, state)["sonar"].reading
+    rot = np.asarray(quat_to_mat(vs.quaternion))
+    world = np.asarray(sonar.directions) @ rot.T  # (beams, rows, 3)
+    origin = np.asarray(vs.position) + rot @ np.asarray(sonar.mount)
+    ranges = _plane_ranges(origin, world, SEABED_Z, sonar.config.max_range)
+    nearest = ranges.argmin(axis=-1)
+    cos = np.abs(world[np.arange(len(nearest)), nearest, 2])  # the seabed's normal is +z
+    expected = np.where(ranges.min(axis=-1) < sonar.config.max_range, cos**2, 0.0)
+    assert expected.min() < 0.05 and expected.max() > 0.25  # grazing to steep: a real spread, not a constant
+    np.testing.assert_allclose(reading.intensity, expected, atol=1e-4)
+    np.testing.assert_allclose(sonar.observe(reading), np.concatenate([reading.ranges, reading.intensity]))
+    assert sonar.observation_size == 2 * sonar.config.beams
+    env = marinejax.make("BlueROV2Heavy-ObstacleAvoidance", **{"sensors.sonar.intensity": True})
+    beams, layout = env.config.sensors.sonar.beams, {f["name"]: f for f in env.observation_layout()}
+    ranges, intensity = layout["sonar"], layout["sonar_intensity"]  # two fields: the ranges, then the intensities
+    assert (ranges["stop"] - ranges["start"], ranges["unit"]) == (beams, "m")
+    assert (intensity["start"], intensity["stop"], intensity["unit"]) == (ranges["stop"], ranges["stop"] + beams, "1")
+    assert env.observation_size == intensity["stop"]
+
+
+def test_echo_intensity_in_a_scene_with_meshes_is_refused(tmp_path):
+    path = tmp_path / "mesh.xml"
+    path.write_text('<mujoco><asset><mesh name="rock" vertex="0 0 0 1 0 0 0 1 0 0 0 1"/></asset><worldbody>'
+                    '<geom name="rock" type="mesh" mesh="rock" pos="3 0 0"/></worldbody></mujoco>')
+    _plant(str(path))  # ranges alone: fine
+    with pytest.raises(UserError, match="'sensors.sonar.intensity'.*needs primitive geoms"):
+        _plant(str(path), sonar={"ideal": True, "intensity": True})
+
+
 def test_noise_bins_and_dropouts_match_their_settings_over_long_samples():
     """4000 pings at a fixed pose 5.5 m over the seabed, rolled so that the sonar's right half sees
     the seabed and its left half nothing: range noise std, range bins and dropout rates as

@@ -1,5 +1,7 @@
 """Offscreen rendering with MuJoCo: frames of a vehicle pose (Gymnasium's rgb_array) and videos of
-recorded episodes (rendered in a child process with MUJOCO_GL set).
+recorded episodes (rendered in a child process with MUJOCO_GL set). An episode with a sonar
+(`SonarTrace`) shows its fan of beams in the chase view and, beside it, the sonar's display: the
+range image as a fan, bearing across and range up (`sonar_display`).
 
     python -m marinejax.render EPISODE.npz OUT_STEM   → prints the written MP4 or GIF path
 """
@@ -7,6 +9,7 @@ recorded episodes (rendered in a child process with MUJOCO_GL set).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 import subprocess
 import sys
@@ -25,6 +28,52 @@ FIN_GEOMS = "marinejax:fin_geoms"  # MJCF custom text: "site:geom,geom site:geom
 WATER_RGBA = (0.03, 0.22, 0.3, 1.0)
 FOG_START_M, FOG_END_M = 3.0, 30.0
 TRAIL_STEPS = 120  # steps of the vehicle's past drawn as its trail (about every 4th)
+ECHO_RGB = np.array([1.0, 0.8, 0.25])  # a sonar echo, in the chase view's beams and the display
+FAN_RGB = np.array([0.03, 0.12, 0.18])  # the display's insonified water
+RING_M = 5.0  # m between the display's range rings
+
+
+@dataclasses.dataclass(frozen=True)
+class SonarTrace:
+    """A sonar's readings over an episode, to draw: ranges (T, beams, m) and hit (T, beams, bool)
+    right to left across the fan; intensity (T, beams, 0-1) or None (every echo drawn at full
+    strength); the fan's geometry: mount (3, m, body), directions (beams, 3, unit, body: the centre
+    of each beam's vertical slice), azimuth (beams, rad, positive to the left) and max_range (m)."""
+
+    ranges: np.ndarray
+    hit: np.ndarray
+    intensity: np.ndarray | None
+    mount: np.ndarray
+    directions: np.ndarray
+    azimuth: np.ndarray
+    max_range: float
+
+
+def sonar_display(ranges: np.ndarray, hit: np.ndarray, intensity: np.ndarray | None, azimuth: np.ndarray, max_range: float,
+                  size: int) -> np.ndarray:
+    """One ping as a sonar display (size, size, 3) uint8: a fan with its apex at the bottom centre,
+    bearing across (left on the left, as the vehicle sees it), range up to `max_range` at the top;
+    each beam's echo a bright arc (its intensity, or full without one) one range bin thick, the
+    water before it dim, its acoustic shadow behind it dark; range rings every RING_M m."""
+    half = 0.5 * (azimuth[-1] - azimuth[0]) if len(azimuth) > 1 else np.radians(1.0)
+    spacing = (azimuth[-1] - azimuth[0]) / (len(azimuth) - 1) if len(azimuth) > 1 else 2 * half
+    y, x = np.mgrid[0:size, 0:size].astype(np.float64)
+    scale = max_range / (size - 2.0)  # m per pixel
+    dx, dy = (x - size / 2.0) * scale, (size - 1.0 - y) * scale
+    r = np.hypot(dx, dy)
+    bearing = np.arctan2(-dx, dy)  # positive to the left
+    beam = np.clip(np.round((bearing - azimuth[0]) / spacing).astype(int), 0, len(azimuth) - 1)
+    inside = (r <= max_range) & (np.abs(bearing) <= half + spacing / 2)
+    echo_range, echoed = ranges[beam], hit[beam]
+    strength = intensity[beam] if intensity is not None else np.ones_like(echo_range)
+    thickness = max(2.0 * scale, 0.01 * max_range)
+    image = np.where(inside[..., None], FAN_RGB, 0.0)
+    image = np.where((inside & echoed & (r > echo_range + thickness))[..., None], 0.4 * FAN_RGB, image)  # shadow
+    arc = inside & echoed & (np.abs(r - echo_range) <= thickness)
+    image = np.where(arc[..., None], FAN_RGB + strength[..., None] * (ECHO_RGB - FAN_RGB), image)
+    rings = inside & (np.abs(r / RING_M - np.round(r / RING_M)) * RING_M < 0.5 * scale) & (r > 0.5 * RING_M)
+    image = np.where((rings & ~arc)[..., None], image + 0.25, image)
+    return (255 * np.clip(image, 0.0, 1.0)).astype(np.uint8)
 
 
 def underwater(model: mujoco.MjModel) -> mujoco.MjModel:
@@ -92,11 +141,13 @@ class FrameRenderer:
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_FOG] = 1
 
     def frame(self, position: np.ndarray, quaternion: np.ndarray, target: np.ndarray, path: np.ndarray | None = None,
-              fin_angles: dict[str, float] | None = None, trail: np.ndarray | None = None) -> np.ndarray:
+              fin_angles: dict[str, float] | None = None, trail: np.ndarray | None = None,
+              beams: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """The frame of the vehicle at world `position` (m) and `quaternion` (w, x, y, z, body → world)
         with the target at world position `target` (m), the reference `path` (K, 3) and the vehicle's
-        `trail` (J, 3: world positions it passed, m) if given, and the fins turned by `fin_angles`
-        (site name → deflection, rad)."""
+        `trail` (J, 3: world positions it passed, m) if given, the fins turned by `fin_angles`
+        (site name → deflection, rad), and a sonar's `beams` if given: (origin (3,), ends (B, 3),
+        strength (B,): 0 for a beam without an echo, drawn faint), world, m."""
         for site, geoms, axis in self.fins:
             turn = np.zeros(4)
             mujoco.mju_axisAngle2Quat(turn, axis, float((fin_angles or {}).get(site, 0.0)))
@@ -116,6 +167,16 @@ class FrameRenderer:
             mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE, np.array([size, 0, 0]),
                                 np.asarray(point, dtype=np.float64), np.eye(3).flatten(), np.asarray(rgba, dtype=np.float32))
             scene.ngeom += 1
+        if beams is not None:
+            origin, ends, strength = beams
+            for end, k in zip(ends, strength):
+                if scene.ngeom >= scene.maxgeom:
+                    break
+                rgba = np.append(ECHO_RGB, 0.25 + 0.65 * k) if k > 0 else np.array([0.6, 0.7, 0.75, 0.12])
+                geom = scene.geoms[scene.ngeom]
+                mujoco.mjv_initGeom(geom, mujoco.mjtGeom.mjGEOM_LINE, np.zeros(3), np.zeros(3), np.eye(3).flatten(), rgba.astype(np.float32))
+                mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 1.5, np.asarray(origin, np.float64), np.asarray(end, np.float64))
+                scene.ngeom += 1
         return self.renderer.render().copy()
 
     def close(self) -> None:
@@ -132,18 +193,35 @@ def _load_model(model: mujoco.MjModel | str | Path) -> mujoco.MjModel:
 
 def render_frames(model: mujoco.MjModel | str | Path, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, qpos_adr: int = 0,
                   width: int = 640, height: int = 480, actuators: np.ndarray | None = None,
-                  actuator_names: tuple[str, ...] = ()) -> list[np.ndarray]:
+                  actuator_names: tuple[str, ...] = (), sonar: SonarTrace | None = None) -> list[np.ndarray]:
     """Frames of a recorded episode: world positions (T, 3, m), quaternions (T, 4), targets (T, 3, m),
     and the actuator states (T, n) named `actuator_names` (fins' in rad) if given; the targets,
     thinned to about 60 points, are drawn as the reference path, the last TRAIL_STEPS positions
-    (every 4th) as the vehicle's trail."""
+    (every 4th) as the vehicle's trail. With a `sonar`, each frame shows its beams (to their echo,
+    or faint to the maximum range) and has the sonar's display (`sonar_display`, height × height)
+    to the right of the chase view: frames (height, width + height, 3)."""
     renderer = FrameRenderer(model, width, height, qpos_adr)
     try:
         path = targets[:: max(1, len(targets) // 60)]
         fins = [(site, list(actuator_names).index(site)) for site, _, _ in renderer.fins if site in actuator_names]
         angles = [{site: float(a[i]) for site, i in fins} for a in actuators] if actuators is not None else [None] * len(position)
-        return [renderer.frame(p, q, target, path, fin, position[max(0, t - TRAIL_STEPS) : t : 4])
-                for t, (p, q, target, fin) in enumerate(zip(position, quaternion, targets, angles))]
+        frames = []
+        for t, (p, q, target, fin) in enumerate(zip(position, quaternion, targets, angles)):
+            beams = None
+            if sonar is not None:
+                rot = np.zeros(9)
+                mujoco.mju_quat2Mat(rot, np.asarray(q, np.float64))
+                rot = rot.reshape(3, 3)
+                origin = p + rot @ sonar.mount
+                strength = np.where(sonar.hit[t], 1.0 if sonar.intensity is None else np.maximum(sonar.intensity[t], 0.05), 0.0)
+                beams = (origin, origin + (sonar.directions @ rot.T) * sonar.ranges[t][:, None], strength)
+            frame = renderer.frame(p, q, target, path, fin, position[max(0, t - TRAIL_STEPS) : t : 4], beams)
+            if sonar is not None:
+                display = sonar_display(sonar.ranges[t], sonar.hit[t], None if sonar.intensity is None else sonar.intensity[t],
+                                        sonar.azimuth, sonar.max_range, height)
+                frame = np.concatenate([frame, display], axis=1)
+            frames.append(frame)
+        return frames
     finally:
         renderer.close()
 
@@ -166,7 +244,8 @@ def write_video(frames: list[np.ndarray], fps: float, out_stem: Path) -> Path:
 
 
 def render_video(model: mujoco.MjModel, position: np.ndarray, quaternion: np.ndarray, targets: np.ndarray, fps: float,
-                 out_stem: Path, qpos_adr: int = 0, actuators: np.ndarray | None = None, actuator_names: tuple[str, ...] = ()) -> Path:
+                 out_stem: Path, qpos_adr: int = 0, actuators: np.ndarray | None = None, actuator_names: tuple[str, ...] = (),
+                 sonar: SonarTrace | None = None) -> Path:
     """Render one episode of `model` (the vehicle in its scene, `Vehicle.mj_model`; arrays as
     `render_frames`) offscreen (MuJoCo, EGL) in a subprocess; returns the MP4 (or GIF) path.
 
@@ -176,6 +255,8 @@ def render_video(model: mujoco.MjModel, position: np.ndarray, quaternion: np.nda
     data, model_file = out_stem.with_suffix(".npz"), out_stem.with_suffix(".mjb")
     mujoco.mj_saveModel(model, str(model_file), None)
     extra = {} if actuators is None else {"actuators": actuators, "actuator_names": np.array(actuator_names)}
+    if sonar is not None:
+        extra.update({f"sonar_{k}": v for k, v in dataclasses.asdict(sonar).items() if v is not None})
     np.savez(data, position=position, quaternion=quaternion, targets=targets, fps=fps, model=str(model_file), qpos_adr=qpos_adr, **extra)
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     proc = subprocess.run([sys.executable, "-m", "marinejax.render", str(data), str(out_stem)],
@@ -190,8 +271,12 @@ def render_video(model: mujoco.MjModel, position: np.ndarray, quaternion: np.nda
 def main(argv: list[str]) -> int:
     data = np.load(argv[0])
     actuators = (data["actuators"], tuple(str(n) for n in data["actuator_names"])) if "actuators" in data else (None, ())
+    sonar = None
+    if "sonar_ranges" in data:
+        fields = {f.name: data[f"sonar_{f.name}"] if f"sonar_{f.name}" in data else None for f in dataclasses.fields(SonarTrace)}
+        sonar = SonarTrace(**{**fields, "max_range": float(fields["max_range"])})
     frames = render_frames(str(data["model"]), data["position"], data["quaternion"], data["targets"], int(data["qpos_adr"]),
-                           actuators=actuators[0], actuator_names=actuators[1])
+                           actuators=actuators[0], actuator_names=actuators[1], sonar=sonar)
     print(write_video(frames, float(data["fps"]), Path(argv[1])))
     return 0
 

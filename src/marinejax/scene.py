@@ -21,10 +21,17 @@ hulls. MJX collides every pair that may touch at every step, so a geom that only
 first should say so (the torpedo dock's bars: the fins, 1.5 m behind the nose, reach them only
 after the task has ended).
 
+A dock that holds a vehicle: a scene site named `latch` is the seat where a docked vehicle's site
+`nose` is held. `compose` joins the two by a weld equality constraint named `latch`, open (inactive)
+at the start of every episode; the task that docks closes it (`Plant.latch`), and MuJoCo's
+constraint solver then draws the vehicle's nose site onto the seat, its frame onto the seat's, with
+the time constant `LATCH_SOLREF` gives (critically damped), and holds it there against its
+thrust. A vehicle without a `nose` site gets no latch.
+
 Scenes shipped: open_water (the default; no contacts, a seabed drawn 10 m below for videos),
 seabed (a hard flat seabed at world z = −5 m), wall (that seabed and a wall, the plane x = 2 m),
 rov_dock (an ROV docking cage with a funnel, landing point at the origin), torpedo_dock (a cone
-narrowing to a tube along +x, for the REMUS 100), pillars (twelve piles a task places per episode)
+narrowing to a tube along +x, for the REMUS 100, with a latch), pillars (twelve piles a task places per episode)
 and terrain (a seabed of blocks along +x whose heights a task draws per episode).
 """
 
@@ -44,6 +51,11 @@ _WORLD_FLAGS = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL
 # onto the other before attaching, so that MuJoCo sees no conflict.
 _VEHICLE_OPTIONS = ("timestep", "gravity", "density", "viscosity", "wind", "magnetic", "integrator", "jacobian", "enableflags")
 _SCENE_OPTIONS = ("solver", "iterations", "ls_iterations", "tolerance", "ls_tolerance", "cone", "impratio", "noslip_iterations")
+LATCH = "latch"  # the scene's seat site, and the weld's name
+NOSE = "nose"  # the vehicle's site a latch holds
+# s, damping ratio: a vehicle latched at 2 m/s stops within about 0.15 m (v · τ / e); MuJoCo keeps
+# the time constant at least two physics steps (0.1 s at the torpedo's 50 ms)
+LATCH_SOLREF = (0.2, 1.0)
 
 
 def scene_dir() -> Path:
@@ -87,7 +99,12 @@ def compose(vehicle: mujoco.MjSpec, scene: str | Path) -> mujoco.MjSpec:
         setattr(vehicle.option, name, getattr(world.option, name))
     world.option.disableflags = (vehicle.option.disableflags & ~_WORLD_FLAGS) | flags
     vehicle.option.disableflags = world.option.disableflags
+    has_latch = any(site.name == LATCH for site in world.sites)
+    vehicle_sites = [site.name for site in vehicle.sites]
     vehicle.attach(world, frame=vehicle.worldbody.add_frame(), prefix=PREFIX)
+    if has_latch and NOSE in vehicle_sites:
+        vehicle.add_equality(name=LATCH, type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_SITE, name1=NOSE,
+                             name2=PREFIX + LATCH, active=False, solref=LATCH_SOLREF)
     return vehicle
 
 

@@ -32,7 +32,8 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
     each of the task's other errors (`MarineEnv.error_names`: heading_error_deg, and e.g. speed_error).
     In a scene with movable geoms also layout (E, k, 3, m, world: where they were), layout_size
     (k, 3, the geoms' MuJoCo sizes) and layout_box (k, bool: a box, whose sizes are half-lengths);
-    with scene sensors each one's observation, e.g. sonar (E, T, beams, m) and altimeter (E, T, 1, m).
+    with scene sensors each of their observation fields, e.g. sonar (E, T, beams, m), altimeter (E, T, 1,
+    m) and, with the sonar's intensities, sonar_intensity (E, T, beams).
     """
     steps = env.config.episode_length
     others = [name for name in env.error_names if name != "position_error"]
@@ -40,7 +41,7 @@ def rollout_controller(env: MarineEnv, controller: Controller, episodes: int, se
 
     def record(s):
         vs = env.plant.vehicle_state(s.pipeline_state)
-        seen = {name: sensor.observe(s.info["scene_sensors"][name].reading) for name, sensor in scene_sensors.sensors.items()}
+        seen = scene_sensors.observe_fields(s.info["scene_sensors"]) if scene_sensors else {}
         return (vs.position, vs.quaternion, env.target_position(s.info), s.metrics["position_error"], s.done,
                 {name: s.metrics[name] for name in others}, vs.actuators, seen, s.info["params"].layout)
 

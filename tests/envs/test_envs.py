@@ -34,13 +34,13 @@ def episode_fn(env):
 # the BlueROV2's tracking tasks are the Heavy's with another vehicle file: its fast lemniscate stands for them.
 # The Fast tracking variants are the tracking class with a faster trajectory config: one stands for
 # all; the path-following tasks are one class over four paths: two stand for all; docking (contacts,
-# the slowest step) and obstacle avoidance (600 steps with a sonar): one ROV each.
+# the slowest step), obstacle avoidance and ROV terrain following (600 steps with a sonar): one ROV each.
 @pytest.mark.parametrize("name", [n for n in E.list_envs() if n.endswith("Disturbed") and not any(
                                       k in n for k in ("Fast", "Following", "Docking", "Obstacle"))
                                   and not (n.startswith("BlueROV2-") and "Tracking" in n)]
                          + ["BlueROV2Heavy-StationKeeping", "Remus100-Autopilot",
                             "BlueROV2-LemniscateTrackingFastDisturbed", "Remus100-WaypointFollowingDisturbed", "Remus100-LemniscateFollowing",
-                            "BlueROV2Heavy-DockingDisturbed", "BlueROV2-ObstacleAvoidanceDisturbed"])
+                            "BlueROV2Heavy-DockingDisturbed", "BlueROV2-ObstacleAvoidanceDisturbed", "BlueROV2-TerrainFollowingDisturbed"])
 def test_env_runs_a_full_episode_finite_under_random_and_extreme_actions(name):
     env = E.make(name)
     n = env.config.episode_length

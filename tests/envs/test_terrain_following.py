@@ -132,6 +132,17 @@ def test_the_classical_autopilot_on_the_altimeter_follows_the_terrain(env, tmp_p
     assert np.all((commanded >= env.config.altitude_range[0] - 1e-4) & (commanded <= env.config.altitude_range[1] + 1e-4))
     assert out["layout_box"].all()
     assert plot_paths(out, "terrain", tmp_path / "paths.png").stat().st_size > 10_000
+    # what an evaluation writes of the sonar (its 8 beams looking ahead at the seabed): the range
+    # images and the trace its video draws (the beams' echoes, `render.SonarTrace`)
+    from marinejax.train.evaluate import _sonar_trace, _write_sonar
+
+    files = _write_sonar(env, out, "terrain", tmp_path)
+    saved = np.load(files["ranges"])
+    np.testing.assert_allclose(saved["ranges"], out["sonar"], atol=1e-5)
+    assert saved["ranges"].shape == (16, env.config.episode_length, 8) and "intensity" not in saved
+    trace = _sonar_trace(env, out, episode=0)
+    assert trace.hit.mean() > 0.5 and trace.intensity is None  # the seabed ahead echoes
+    np.testing.assert_array_equal(trace.hit, out["sonar"][0] < env.config.sensors.sonar.max_range)
 
 
 def test_the_autopilot_policy_can_start_it():
@@ -154,7 +165,8 @@ def test_bad_settings_are_refused():
         mj.make(ENV, sensors={"altimeter": {"enabled": False}})
     with pytest.raises(UserError, match="altitude_range"):
         mj.make(ENV, altitude_range=(3.0, 1.0))
-    assert "BlueROV2-TerrainFollowing" not in mj.list_envs() and "Remus100-TerrainFollowingDisturbed" in mj.list_envs()
+    assert "Remus100-TerrainFollowingDisturbed" in mj.list_envs()
+    assert type(mj.make("BlueROV2-TerrainFollowing")).__name__ == "RovTerrainFollowing"  # the ROVs' class of the task
 
 
 def test_under_a_current_the_speed_through_the_water_stays_within_its_range():

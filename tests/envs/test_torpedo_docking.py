@@ -119,3 +119,43 @@ def test_line_of_sight_flies_the_remus_into_the_dock(env):
         assert result["time_to_dock"][e, -1] == pytest.approx(result["time"][k], abs=1e-3)
     assert (result["lateral_error"][:, -1] <= env.config.capture_radius).all()
     assert np.isfinite(result["impact_force"]).all()
+    # the dock's latch holds the docked vehicle: within 2 s its nose is on the seat (the scene's site
+    # `latch`, on the axis 0.3 m inside the tube), and it stays there, aligned with the axis, to the episode's end
+    for e, k in enumerate(first):
+        rot = np.asarray(jax.vmap(quat_to_mat)(jnp.asarray(result["quaternion"][e, k + 20:])))
+        nose = result["position"][e, k + 20:] + rot @ np.asarray(env.config.nose)
+        assert np.abs(nose - [1.3, 0.0, 0.0]).max() < 0.02, (e, nose.min(axis=0), nose.max(axis=0))
+        assert (rot[:, 0, 0] > np.cos(np.radians(2.0))).all() and rot[-1, 0, 0] > np.cos(np.radians(0.2))  # aligned with the dock's axis
+
+
+def test_the_latch_holds_a_vehicle_against_full_thrust_and_an_open_one_lets_it_pass():
+    """The scene's latch (a weld, marinejax.scene) at the plant: a REMUS entering the tube at 1.5 m/s,
+    0.05 m off the axis, under full thrust for 10 s. Closed, it draws the nose onto the seat
+    (1.3, 0, 0) and holds it there (within 1.5 cm after 2 s, 1 cm over the last 5 s), the hold's force balancing the propeller's thrust;
+    open (as at every reset), the vehicle flies on through the tube."""
+    from marinejax.plant import Plant, PlantConfig
+
+    plant = Plant("remus100", PlantConfig(scene="torpedo_dock", control_dt=0.1, substeps=2))
+    params = plant.nominal_params()
+    nose = np.array([0.8, 0.0, 0.02])  # the vehicle's site 'nose', body frame
+    start = VehicleState(position=jnp.asarray([1.05, 0.05, 0.0] - nose, jnp.float32), quaternion=jnp.array([1.0, 0, 0, 0]),
+                         velocity=jnp.array([1.5, 0.0, 0.0]), angular_velocity=jnp.zeros(3), actuators=jnp.zeros(plant.action_size))
+    full = jnp.zeros(plant.action_size).at[-1].set(1.0)  # the propeller's throttle (fins centred)
+    run = jax.jit(lambda s: plant.open_loop(params, s, jnp.tile(full, (100, 1)), jax.random.PRNGKey(0)))
+    initial = plant.init(jax.random.PRNGKey(0), params, start)
+    assert not bool(initial.physics.data.eq_active[plant.latch_id])  # open at the start
+    held, states, finite = run(plant.latch(initial, jnp.asarray(True)))
+    assert bool(finite.all())
+    noses = np.asarray(states.position) + nose
+    assert np.abs(noses[20:] - [1.3, 0.0, 0.0]).max() < 0.015 and np.abs(noses[-50:] - [1.3, 0.0, 0.0]).max() < 0.01
+    assert noses[:, 0].max() < 1.5
+    propeller = plant.sys.actuators[-1]  # its shaft speed (rev/min) at the end, at standstill in the water
+    thrust = float(propeller.kind.wrench(propeller.design, propeller.params, states.actuators[-1, -1:], jnp.zeros(6))[0])
+    assert thrust > 50.0  # N, the hull's share of the bollard thrust at full throttle
+    assert float(plant.contact_wrench(held)[0]) == pytest.approx(-thrust, rel=0.02)  # the hold balances the thrust
+    free, states, _ = run(initial)
+    assert float(states.position[-1, 0]) > 2.8 + 5.0  # through the open tube and on
+    with pytest.raises(UserError, match="scene 'rov_dock' has no latch"):
+        Plant("remus100", PlantConfig(scene="rov_dock")).latch(initial, jnp.asarray(True))
+    with pytest.raises(UserError, match="needs a scene whose dock holds the vehicle"):
+        marinejax.make("Remus100-Docking", scene="rov_dock")

@@ -23,6 +23,7 @@ from marinejax.envs.autopilot import Autopilot, AutopilotConfig
 from marinejax.envs.docking import Docking, DockingConfig
 from marinejax.envs.obstacle_avoidance import ObstacleAvoidance, ObstacleAvoidanceConfig
 from marinejax.envs.path_following import PathFollowing, PathFollowingConfig
+from marinejax.envs.rov_terrain_following import RovTerrainFollowing, RovTerrainFollowingConfig
 from marinejax.envs.station_keeping import StationKeeping
 from marinejax.envs.terrain_following import TerrainFollowing, TerrainFollowingConfig
 from marinejax.envs.torpedo_docking import TorpedoDocking, TorpedoDockingConfig
@@ -36,6 +37,7 @@ register_task("Docking", TorpedoDocking)  # torpedo AUVs, in the torpedo_dock sc
 register_task("ObstacleAvoidance", ObstacleAvoidance)  # ROVs, in the pillars scene, with the sonar
 register_task("Autopilot", Autopilot)  # torpedo AUVs
 register_task("TerrainFollowing", TerrainFollowing)  # torpedo AUVs, in the terrain scene, with the altimeter and sonar
+register_task("TerrainFollowing", RovTerrainFollowing)  # ROVs, along a transect over the terrain scene
 register_task("WaypointFollowing", PathFollowing, kind="lines")
 register_task("CircleFollowing", PathFollowing, kind="circle")
 register_task("HelixFollowing", PathFollowing, kind="helix")
@@ -66,6 +68,8 @@ __all__ = [
     "RandomizationConfig",
     "ResetConfig",
     "RewardConfig",
+    "RovTerrainFollowing",
+    "RovTerrainFollowingConfig",
     "TerrainFollowing",
     "TerrainFollowingConfig",
     "TorpedoDocking",

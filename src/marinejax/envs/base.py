@@ -8,7 +8,8 @@ pure and jit/vmap-able; names and sizes are resolved at construction.
 
 One step (`_transition`), in order: the action is clipped to [−1, 1] and, in sensor mode, delayed
 (`_delay_action`); the plant advances its actuators and physics; the task updates its own state
-(`advance_task`); the enabled scene sensors (altimeter, sonar) cast their rays into the scene; in
+(`advance_task`) and sets the scene's mechanisms for the next step (`operate_scene`: a dock's
+latch); the enabled scene sensors (altimeter, sonar) cast their rays into the scene; in
 sensor mode the navigation sensors measure and the estimator updates (`_sense`); the task
 observes (`observe`, plus the integral, the scene sensors' readings and the privileged parts:
 `_observation`), delayed in sensor mode (`_delay_observation`); the task's reward terms and errors
@@ -331,6 +332,7 @@ class MarineEnv(Env):
             info["contact"] = self.plant.contact_wrench(ps)
         vs = self.plant.vehicle_state(ps)
         info["task"] = self.advance_task(info["task"], vs, info)  # the task's own state (a path's closest point)
+        ps = self.operate_scene(ps, info["task"])  # the scene's mechanisms (a dock's latch), from the next step on
         if self.plant.scene_sensors:  # altimeter, sonar: ray casts into the scene
             info["scene_sensors"] = self.plant.scene_sensors.step(info["scene_sensors"], self.plant.cast(info["params"], ps), k_scene)
         if self._sensor_mode:
@@ -585,6 +587,12 @@ class MarineEnv(Env):
         for a task with a state of its own, such as the closest point on a path or a latch. Most
         tasks' targets are fixed per episode: unchanged."""
         return task
+
+    def operate_scene(self, ps: PlantState, task: Any) -> PlantState:
+        """The plant state with the scene's mechanisms set for the task's state after this step,
+        acting from the next physics step on: a dock's latch closed once the vehicle is docked
+        (`Plant.latch`). Most tasks leave the scene as it is."""
+        return ps
 
     def observe(self, vs: VehicleState, info: dict, action: jnp.ndarray) -> jnp.ndarray:
         """The task's observation (before the integral) at state `vs`, time info['time'], after `action`."""

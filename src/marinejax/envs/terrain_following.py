@@ -63,6 +63,80 @@ BLOCK_HALF_HEIGHT = 10.0  # m (the scene's box half-size)
 FIRST_BLOCK_X = -6.0  # m, world x where the first block starts
 
 
+def block_centres(blocks: int) -> np.ndarray:
+    """World x (m) of the terrain scene's first `blocks` blocks' centres, in the order of `BLOCKS`."""
+    return FIRST_BLOCK_X + BLOCK_LENGTH * (np.arange(blocks) + 0.5)
+
+
+def draw_profile(k_wave: jax.Array, k_phase: jax.Array, centres: jnp.ndarray, max_slope: float, wavelength: tuple[float, float],
+                 waves: int) -> jnp.ndarray:
+    """A seabed profile about 0 (m, world z) at the blocks' centres (m, world x): the sum of `waves`
+    sines of wavelengths drawn in `wavelength` (m, key `k_wave`), random phases (`k_phase`), each with
+    the steepest slope `max_slope` / `waves`."""
+    length = jax.random.uniform(k_wave, (waves,), minval=wavelength[0], maxval=wavelength[1])
+    phase = jax.random.uniform(k_phase, (waves,), maxval=2 * jnp.pi)
+    amplitude = max_slope / waves * length / (2 * jnp.pi)
+    return jnp.sum(amplitude * jnp.sin(2 * jnp.pi * centres[:, None] / length + phase), axis=1)
+
+
+def draw_terrain_episode(rng: jax.Array, centres: jnp.ndarray, config) -> tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray]:
+    """One episode's altitude set-point (m, in `altitude_range`), speed set-point (m/s, in
+    `speed_range`) and block tops (m, world z, at `centres`): the profile (`draw_profile`) about a
+    mean that puts the commanded altitude over it at a world z in `depth_range`."""
+    c = config
+    k = jax.random.split(rng, 5)
+    altitude = jax.random.uniform(k[2], minval=c.altitude_range[0], maxval=c.altitude_range[1])
+    mean = jax.random.uniform(k[4], minval=c.depth_range[0], maxval=c.depth_range[1]) - altitude
+    tops = mean + draw_profile(k[0], k[1], centres, c.max_slope, c.wavelength, c.waves)
+    speed = jax.random.uniform(k[3], minval=c.speed_range[0], maxval=c.speed_range[1])
+    return altitude, speed, tops
+
+
+def seabed_z(tops: jnp.ndarray, x: jnp.ndarray) -> jnp.ndarray:
+    """World z (m) of the seabed at world x (m; any shape): the top of the block there."""
+    i = jnp.clip(jnp.floor((x - FIRST_BLOCK_X) / BLOCK_LENGTH).astype(jnp.int32), 0, tops.shape[0] - 1)
+    return tops[i]
+
+
+def check_terrain_config(config) -> None:
+    """UserError naming the first bad setting a terrain-following config (torpedo or ROV) shares."""
+    check_range("altitude_range", config.altitude_range, positive=True)
+    check_range("wavelength", config.wavelength, positive=True)
+    for name in ("settle", "start_altitude_error", "start_heading_error", "max_slope", "max_cross_track"):
+        if not getattr(config, name) >= 0:
+            raise UserError(f"config '{name}' must be >= 0, got {getattr(config, name)}")
+    if config.waves < 1:
+        raise UserError(f"config 'waves' must be >= 1, got {config.waves}")
+    if len(config.movable_geoms) < 2:
+        raise UserError(f"config 'movable_geoms' must name the terrain's blocks (at least 2), got {config.movable_geoms!r}")
+    if not config.sensors.altimeter.enabled:
+        raise UserError("config 'sensors.altimeter.enabled' must be true: terrain following measures the altitude with it")
+
+
+def check_terrain_scene(env: MarineEnv) -> None:
+    """UserError unless the env's movable geoms are blocks shaped as the terrain scene's."""
+    sizes = env.vehicle.mj_model.geom_size[np.asarray(env.plant.sys.layout_ids, int)]
+    if not np.allclose(sizes[:, 0], BLOCK_LENGTH / 2) or not np.allclose(sizes[:, 2], BLOCK_HALF_HEIGHT):
+        raise UserError(f"terrain following needs blocks {BLOCK_LENGTH} m long and {2 * BLOCK_HALF_HEIGHT} m tall (the "
+                        f"terrain scene's); scene {env.vehicle.scene!r} gives its movable geoms the half-sizes {sizes.tolist()}")
+
+
+def hull_clearance(hull, vs: VehicleState, tops: jnp.ndarray) -> jnp.ndarray:
+    """Height (m) of the hull's lowest point above the seabed: the least over the collision capsules'
+    (`hull`, `vehicle.collision_capsules`) ends of their bottom above the block below them."""
+    rot = quat_to_mat(vs.quaternion)
+    ends = vs.position + jnp.concatenate([hull.a, hull.b]) @ rot.T
+    radius = jnp.concatenate([hull.radius, hull.radius])
+    return jnp.min(ends[:, 2] - radius - seabed_z(tops, ends[:, 0]))
+
+
+def altitude_from_dvl(along_axis: jnp.ndarray, vs: VehicleState, dvl: jnp.ndarray) -> jnp.ndarray:
+    """The altitude (m) of the vehicle's origin from the DVL's, `along_axis` (m, along the DVL's
+    axis from its head at `dvl`, m body): turned vertical and moved to the origin."""
+    up = quat_to_mat(vs.quaternion)[2, :]  # world up in the body frame
+    return along_axis * up[2] - up @ dvl
+
+
 @dataclasses.dataclass(frozen=True)
 class TerrainFollowingConfig(AutopilotConfig):
     scene: str = "terrain"
@@ -96,19 +170,9 @@ class TerrainFollowingConfig(AutopilotConfig):
 
     def __post_init__(self):
         super().__post_init__()
-        check_range("altitude_range", self.altitude_range, positive=True)
-        check_range("wavelength", self.wavelength, positive=True)
-        for name in ("settle", "start_altitude_error", "start_heading_error", "max_slope", "max_cross_track"):
-            if not getattr(self, name) >= 0:
-                raise UserError(f"config '{name}' must be >= 0, got {getattr(self, name)}")
         if self.segments != 1:
             raise UserError(f"config 'segments' must be 1 for terrain following (one altitude, heading and speed), got {self.segments}")
-        if self.waves < 1:
-            raise UserError(f"config 'waves' must be >= 1, got {self.waves}")
-        if len(self.movable_geoms) < 2:
-            raise UserError(f"config 'movable_geoms' must name the terrain's blocks (at least 2), got {self.movable_geoms!r}")
-        if not self.sensors.altimeter.enabled:
-            raise UserError("config 'sensors.altimeter.enabled' must be true: terrain following measures the altitude with it")
+        check_terrain_config(self)
 
 
 @struct.dataclass
@@ -134,31 +198,18 @@ class TerrainFollowing(Autopilot):
         self._hull = collision_capsules(self.vehicle.mj_model, self.plant.sys.body_id, self.vehicle.name)
         self._dvl = jnp.asarray(config.sensors.altimeter.position, jnp.float32)
         # world x of the blocks' centres, in the order of `movable_geoms`
-        self._centres = jnp.asarray(FIRST_BLOCK_X + BLOCK_LENGTH * (np.arange(len(config.movable_geoms)) + 0.5), jnp.float32)
-        sizes = self.vehicle.mj_model.geom_size[np.asarray(self.plant.sys.layout_ids, int)]
-        if not np.allclose(sizes[:, 0], BLOCK_LENGTH / 2) or not np.allclose(sizes[:, 2], BLOCK_HALF_HEIGHT):
-            raise UserError(f"terrain following needs blocks {BLOCK_LENGTH} m long and {2 * BLOCK_HALF_HEIGHT} m tall (the "
-                            f"terrain scene's); scene {self.vehicle.scene!r} gives its movable geoms the half-sizes {sizes.tolist()}")
+        self._centres = jnp.asarray(block_centres(len(config.movable_geoms)), jnp.float32)
+        check_terrain_scene(self)
 
     def error_window(self, time):
         return self.after(time, self.config.settle)
 
     def seabed(self, tops: jnp.ndarray, x: jnp.ndarray) -> jnp.ndarray:
         """World z (m) of the seabed at world x (m; any shape): the top of the block there."""
-        i = jnp.clip(jnp.floor((x - FIRST_BLOCK_X) / BLOCK_LENGTH).astype(jnp.int32), 0, tops.shape[0] - 1)
-        return tops[i]
+        return seabed_z(tops, x)
 
     def _sample_task(self, rng):
-        c = self.config
-        k = jax.random.split(rng, 5)
-        wavelength = jax.random.uniform(k[0], (c.waves,), minval=c.wavelength[0], maxval=c.wavelength[1])
-        phase = jax.random.uniform(k[1], (c.waves,), maxval=2 * jnp.pi)
-        amplitude = c.max_slope / c.waves * wavelength / (2 * jnp.pi)  # each sine's steepest slope: max_slope / waves
-        altitude = jax.random.uniform(k[2], minval=c.altitude_range[0], maxval=c.altitude_range[1])
-        # the profile's mean: the commanded altitude over it at a depth in depth_range (the autopilot's depths)
-        mean = jax.random.uniform(k[4], minval=c.depth_range[0], maxval=c.depth_range[1]) - altitude
-        tops = mean + jnp.sum(amplitude * jnp.sin(2 * jnp.pi * self._centres[:, None] / wavelength + phase), axis=1)
-        speed = jax.random.uniform(k[3], minval=c.speed_range[0], maxval=c.speed_range[1])
+        altitude, speed, tops = draw_terrain_episode(rng, self._centres, self.config)
         zero = jnp.zeros(())
         return TerrainTask(altitude=altitude, heading=zero, speed=speed, yaw=zero, tops=tops,
                            ground=self.seabed(tops, zero), xy=jnp.zeros(2), held=altitude + self._dvl[2])  # level, at the set-point
@@ -202,9 +253,7 @@ class TerrainFollowing(Autopilot):
         """The altitude (m) as the vehicle measures it: the altimeter's (the last valid one without
         bottom lock), along the DVL's axis from its head, turned vertical and moved to the origin."""
         reading = info["scene_sensors"]["altimeter"].reading
-        along_axis = jnp.where(reading.lock, reading.altitude, info["task"].held)
-        up = quat_to_mat(vs.quaternion)[2, :]  # world up in the body frame
-        return along_axis * up[2] - up @ self._dvl
+        return altitude_from_dvl(jnp.where(reading.lock, reading.altitude, info["task"].held), vs, self._dvl)
 
     def integral_error(self, vs: VehicleState, info) -> jnp.ndarray:
         """The measured altitude error as world z (m) and the heading error (rad)."""
@@ -220,12 +269,8 @@ class TerrainFollowing(Autopilot):
         return obs.at[fields["set_point_depth"]].set((vs.position[2] + error) / 10.0)
 
     def clearance(self, vs: VehicleState, tops: jnp.ndarray) -> jnp.ndarray:
-        """Height (m) of the hull's lowest point above the seabed: the least over the collision
-        capsules' ends of their bottom above the block below them."""
-        rot = quat_to_mat(vs.quaternion)
-        ends = vs.position + jnp.concatenate([self._hull.a, self._hull.b]) @ rot.T
-        radius = jnp.concatenate([self._hull.radius, self._hull.radius])
-        return jnp.min(ends[:, 2] - radius - self.seabed(tops, ends[:, 0]))
+        """Height (m) of the hull's lowest point above the seabed (`hull_clearance`)."""
+        return hull_clearance(self._hull, vs, tops)
 
     def errors(self, vs: VehicleState, info):
         gap = self.clearance(vs, info["task"].tops)

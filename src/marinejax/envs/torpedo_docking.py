@@ -17,8 +17,10 @@ Latched (the metric `docked`, 1 or 0, and the task's state): when the vehicle's 
 frame from the CG) passes the tube's entrance within `capture_radius` of the axis (inside the ring
 of bars) moving forward, the dock's latch holds it: the task is done, its errors keep their values
 at docking and its reward is `reward.docked` once, on the step the latch closes, then the best of
-every term for the rest of the episode (the physics goes on; a real dock would stop the vehicle, and
-nothing the vehicle does then counts; a bonus on every docked step would pay for arriving early).
+every term for the rest of the episode (nothing the vehicle does then counts; a bonus on every
+docked step would pay for arriving early). From the next step on the scene's latch (a weld,
+`marinejax.scene`) draws the nose onto the seat 0.3 m inside the tube, on its axis, and holds it
+there whatever the vehicle's actuators do.
 A nose that passes the entrance's plane outside the tube has missed (a torpedo cannot turn back
 within the episode). Contacts with the funnel are how it guides the vehicle: a contact
 force above `impact_threshold` N costs reward (the term `impact`, −(|F| − threshold)/threshold),
@@ -121,6 +123,10 @@ class TorpedoDocking(PathFollowing):
         super().__init__(vehicle, config, kind="lines")
         if not self.plant.sys.contacts:
             raise UserError(f"the TorpedoDocking task needs a scene with contacts (the dock); scene {config.scene!r} has none")
+        if self.plant.latch_id is None:
+            raise UserError(f"the TorpedoDocking task needs a scene whose dock holds the vehicle (a site 'latch', "
+                            f"marinejax.scene, and a vehicle with a site 'nose'); scene {config.scene!r} with vehicle "
+                            f"{self.plant.vehicle.name!r} has none")
         self._nose = jnp.asarray(config.nose, jnp.float32)
         self._latch = jnp.array([config.tube_entrance, 0.0, 0.0], jnp.float32)
 
@@ -161,6 +167,11 @@ class TorpedoDocking(PathFollowing):
         return follow.replace(docked=jnp.maximum(task.docked, latched.astype(jnp.float32)), latched=latched.astype(jnp.float32),
                               miss=jnp.where(through & ~latched, radial, task.miss),
                               at_dock=jnp.where(task.docked > 0, task.at_dock, live))
+
+    def operate_scene(self, ps, task: DockApproachTask):
+        """The dock's latch closed once docked: it holds the nose on the seat (the scene's site
+        `latch`, 0.3 m inside the tube) for the rest of the episode."""
+        return self.plant.latch(ps, task.docked > 0)
 
     def errors(self, vs: VehicleState, info) -> dict[str, jnp.ndarray]:
         task: DockApproachTask = info["task"]

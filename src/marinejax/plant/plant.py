@@ -39,7 +39,7 @@ from marinejax.plant.randomization import RandomizationConfig, sample_dynamics
 from marinejax.plant.rays import SceneRays
 from marinejax.plant.scene_sensors import SceneSensors
 from marinejax.plant.sensors import SensorConfig, SensorSuite
-from marinejax.scene import DEFAULT_SCENE, PREFIX as SCENE_PREFIX, scene_path
+from marinejax.scene import DEFAULT_SCENE, LATCH as SCENE_LATCH, PREFIX as SCENE_PREFIX, scene_path
 from marinejax.vehicle import Vehicle, load_vehicle
 
 
@@ -99,6 +99,11 @@ class Plant:
         self.sensors = SensorSuite(config.sensors, config.control_dt, self.gravity)
         self.rays = SceneRays(self.vehicle.mj_model, self.sys.body_id, self.sys.layout_ids)
         self.scene_sensors = SceneSensors(config.sensors, config.control_dt)  # the enabled altimeter and sonar
+        if self.rays.meshes and any(getattr(s, "incidence", False) for s in self.scene_sensors.sensors.values()):
+            raise UserError(f"scene {self.vehicle.scene!r} has meshes among the geoms the rays see; the sonar's echo intensity "
+                            "(config 'sensors.sonar.intensity') needs primitive geoms (planes, spheres, capsules, ellipsoids, boxes)")
+        m = self.vehicle.mj_model
+        self.latch_id = next((i for i in range(m.neq) if m.eq(i).name == SCENE_LATCH), None)  # the scene's latch weld (marinejax.scene)
         # The MJX step is traced once per plant and reused wherever it is called (training rollout,
         # evaluation, tests): inlined into each caller's jit it is retraced by each, seconds apiece.
         self._step = jax.jit(self._step_unjitted)
@@ -181,15 +186,27 @@ class Plant:
 
     def cast(self, params: PlantParams, state: PlantState):
         """The ray cast of the vehicle at `state` into its scene, for the scene sensors:
-        cast(mount (3, m, body), directions (..., 3, unit, body), max_range (m)) → (range (...,) m,
-        hit (...,) bool), as `SceneRays.cast`."""
+        cast(mount (3, m, body), directions (..., 3, unit, body), max_range (m), incidence=False) →
+        (range (...,) m, hit (...,) bool[, cosine of the incidence angle (...,)]), as `SceneRays.cast`."""
         vs = self.vehicle_state(state)
-        return lambda mount, directions, max_range: self.rays.cast(params.layout, state.physics.data, vs, mount, directions, max_range)
+        return lambda mount, directions, max_range, incidence=False: self.rays.cast(params.layout, state.physics.data, vs, mount,
+                                                                                    directions, max_range, incidence)
+
+    def latch(self, state: PlantState, closed: jax.Array) -> PlantState:
+        """The state with the scene's latch (marinejax.scene) closed where `closed` (bool, ()) is
+        true, open where false, from the next physics step on: closed, it holds the vehicle's nose on
+        the dock's seat."""
+        if self.latch_id is None:
+            raise UserError(f"scene {self.vehicle.scene!r} has no latch for vehicle {self.vehicle.name!r} (a scene site "
+                            f"{SCENE_LATCH!r} and a vehicle site 'nose'; marinejax.scene)")
+        data = state.physics.data
+        data = data.replace(eq_active=data.eq_active.at[self.latch_id].set(closed))
+        return state.replace(physics=state.physics.replace(data=data))
 
     def contact_wrench(self, state: PlantState) -> jnp.ndarray:
         """What the scene's contacts exert on the vehicle (6,): force (N, world frame) and moment about
         the CG (N m, body frame FLU), from MuJoCo's constraint solution at the last physics step
-        (zeros where the scene has no contacts)."""
+        (zeros where the scene has no contacts); a closed latch's hold is included."""
         if not self.sys.contacts:
             return jnp.zeros(6)
         da = self.sys.dof_adr

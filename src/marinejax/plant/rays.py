@@ -49,6 +49,7 @@ class SceneRays:
         seen &= np.isin(mj_model.geom_type, list(_PRIMITIVES | {int(mujoco.mjtGeom.mjGEOM_MESH)}))
         ids = np.nonzero(seen)[0]
         self.num_geoms = int(ids.size)  # how many geoms a ray is tested against
+        self.meshes = False  # whether the seen geoms include meshes (no incidence angle then)
         data = mujoco.MjData(mj_model)
         mujoco.mj_kinematics(mj_model, data)  # static geoms' world poses (the vehicle's do not matter)
         if not ids.size:
@@ -65,11 +66,14 @@ class SceneRays:
             self._model = mjx.put_model(lean, device=mjx_device())
             self._data = mjx.make_data(lean, device=mjx_device()).replace(geom_xpos=jnp.asarray(lean.geom_pos, jnp.float32),
                                                      geom_xmat=jnp.asarray(data.geom_xmat[ids].reshape(-1, 3, 3), jnp.float32))
+            self._types = np.asarray(lean.geom_type)  # per lean geom, for the surface normals (incidence)
+            self._sizes = jnp.asarray(lean.geom_size, jnp.float32)
             index = {int(g): k for k, g in enumerate(ids)}
             self._layout = [(index[g], k) for k, g in enumerate(layout_ids) if g in index]  # (lean geom, layout row)
             self._full = False
         else:  # meshes: cast into the full model, its poses by kinematics at each call
             self._model, self._full = mjx.put_model(mj_model, device=mjx_device()), True
+            self.meshes = True
             self._exclude = tuple(int(b) for b in np.nonzero(mj_model.body_rootid == root)[0])
             self._layout_ids = tuple(layout_ids)
 
@@ -86,25 +90,57 @@ class SceneRays:
         return self._model, d, {}
 
     def cast(self, layout: jnp.ndarray, data: mjx.Data, vs: VehicleState, mount: jnp.ndarray, directions: jnp.ndarray,
-             max_range: float) -> tuple[jnp.ndarray, jnp.ndarray]:
+             max_range: float, incidence: bool = False):
         """Beams from the mount point `mount` (3, m, body) along `directions` (..., 3, unit, body) of a
         vehicle at `vs`, in the scene with this episode's `layout` (`PlantParams.layout`); `data`: the
         plant's MJX data (read only for scenes with meshes). Returns (range (...,) m, clipped to
-        `max_range`; hit (...,) bool: a geom within `max_range`)."""
+        `max_range`; hit (...,) bool: a geom within `max_range`), and with `incidence` a third array
+        (...,): the cosine of the angle between each beam and the normal of the surface it hit (1:
+        head on; 0 where nothing was hit). Incidence needs primitive geoms (no meshes)."""
         shape = directions.shape[:-1]
         if self._model is None:
-            return jnp.full(shape, max_range, jnp.float32), jnp.zeros(shape, bool)
+            miss = (jnp.full(shape, max_range, jnp.float32), jnp.zeros(shape, bool))
+            return (*miss, jnp.zeros(shape, jnp.float32)) if incidence else miss
+        if incidence and self._full:
+            raise UserError("the incidence angle of a ray needs a scene of primitive geoms (planes, spheres, capsules, "
+                            "ellipsoids, boxes); this scene's seen geoms include meshes")
         model, scene, options = self._scene(layout, data)
         rot = quat_to_mat(vs.quaternion)
         origin = vs.position + rot @ mount
         flat = directions.reshape(-1, 3) @ rot.T
 
         def one(vec):
-            return mjx.ray(model, scene, origin, vec, **options)[0]
+            return mjx.ray(model, scene, origin, vec, **options)
 
-        dist = jax.vmap(one)(flat).reshape(shape)
+        dist, geom = jax.vmap(one)(flat)
         hit = (dist >= 0) & (dist <= max_range)
-        return jnp.where(hit, dist, max_range), hit
+        out = (jnp.where(hit, dist, max_range).reshape(shape), hit.reshape(shape))
+        if not incidence:
+            return out
+        normal = self._normal(scene, jnp.maximum(geom, 0), origin + flat * dist[:, None])
+        cos = jnp.where(hit, jnp.abs(jnp.sum(normal * flat, axis=-1)), 0.0)
+        return (*out, cos.reshape(shape))
+
+    def _normal(self, scene: mjx.Data, geom: jnp.ndarray, point: jnp.ndarray) -> jnp.ndarray:
+        """Unit outward normals (n, 3, world) of the lean model's geoms `geom` (n,) at world points
+        `point` (n, 3) on their surfaces."""
+        centre, rot = scene.geom_xpos[geom], scene.geom_xmat[geom]
+        local = jnp.einsum("nji,nj->ni", rot, point - centre)  # the point in the geom's frame
+        size = self._sizes[geom]
+        kind = jnp.asarray(self._types)[geom]
+        g = mujoco.mjtGeom
+        # a capsule's half-length is size[1]: its normal points away from the nearest point of its axis
+        axis_point = jnp.zeros_like(local).at[:, 2].set(jnp.clip(local[:, 2], -size[:, 1], size[:, 1]))
+        # a box's face: the axis along which the point lies farthest out relative to the half-size
+        face = jnp.argmax(jnp.abs(local) / jnp.maximum(size, 1e-9), axis=-1)
+        box = jax.nn.one_hot(face, 3) * jnp.sign(jnp.take_along_axis(local, face[:, None], axis=-1))
+        n_local = jnp.select(
+            [kind[:, None] == int(g.mjGEOM_PLANE), kind[:, None] == int(g.mjGEOM_SPHERE), kind[:, None] == int(g.mjGEOM_CAPSULE),
+             kind[:, None] == int(g.mjGEOM_ELLIPSOID)],
+            [jnp.broadcast_to(jnp.array([0.0, 0.0, 1.0]), local.shape), local, local - axis_point, local / jnp.maximum(size, 1e-9) ** 2],
+            box)
+        n = jnp.einsum("nij,nj->ni", rot, n_local)
+        return n / jnp.maximum(jnp.linalg.norm(n, axis=-1, keepdims=True), 1e-9)
 
 
 def fan(horizontal: int, horizontal_fov: float, vertical: int, vertical_fov: float, tilt: float) -> np.ndarray:

@@ -10,7 +10,9 @@ the env appends its reading to the observation (field `<name>`) and hands it to 
 A scene sensor is a section of the sensors config whose config has the property `sensor`: the class
 that implements it, constructed as `sensor(config, control_dt)`, with `measure(cast, rng) ->
 reading`, `observe(reading) -> (observation_size,)`, `period` (control steps per update),
-`observation_size` and `field` (unit, frame, meaning of its observation field); `cast` is the
+`observation_size` and `field` (unit, frame, meaning of its observation field) or, for an
+observation of several fields, `fields` (field name → (size, (unit, frame, meaning)), in the
+observation's order; the sonar with intensities: `sonar`, then `sonar_intensity`); `cast` is the
 plant's ray cast bound to the vehicle's current state (`Plant.cast`). A new one is one module (its
 config and class) plus a field in a subclass of `SensorConfig` (`tests/test_scene_sensors.py` adds
 an echo sounder so). Here each sensor updates every `period` steps at a phase drawn per episode and
@@ -77,13 +79,28 @@ class SceneSensors:
             out[name] = held.replace(step=step, reading=new)
         return out
 
+    def _fields(self) -> dict[str, tuple[int, tuple[str, str, str]]]:
+        out = {}
+        for name, sensor in self.sensors.items():
+            out.update(getattr(sensor, "fields", None) or {name: (sensor.observation_size, sensor.field)})
+        return out
+
     def observation_sizes(self) -> dict[str, int]:
-        return {name: sensor.observation_size for name, sensor in self.sensors.items()}
+        """Each observation field's size, in the observation's order: name → size."""
+        return {name: size for name, (size, _) in self._fields().items()}
 
     def observation_fields(self) -> dict[str, tuple[str, str, str]]:
-        """Each sensor's observation field: name → (unit, frame, meaning)."""
-        return {name: sensor.field for name, sensor in self.sensors.items()}
+        """Each observation field's description: name → (unit, frame, meaning)."""
+        return {name: described for name, (_, described) in self._fields().items()}
 
     def observe(self, states: dict[str, HeldSensor]) -> jnp.ndarray:
         """The readings as one vector (the env appends it to the observation)."""
         return jnp.concatenate([sensor.observe(states[name].reading) for name, sensor in self.sensors.items()])
+
+    def observe_fields(self, states: dict[str, HeldSensor]) -> dict[str, jnp.ndarray]:
+        """The readings by observation field: name → its part of `observe` (e.g. "sonar": the ranges)."""
+        out, start, whole = {}, 0, self.observe(states)
+        for name, size in self.observation_sizes().items():
+            out[name] = whole[start : start + size]
+            start += size
+        return out

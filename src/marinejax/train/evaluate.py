@@ -73,7 +73,8 @@ def evaluate_controller(env_name: str, controller: str, out_dir: Path | None = N
 def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path, video: bool) -> dict[str, Any]:
     summary = {**summary, **summarize(env, result)}
     summary["plot"] = str(plot_paths(result, title, out_dir / "paths.png"))
-    if "sonar" in result:
+    sonar = _sonar_trace(env, result, episode=0) if "sonar" in result else None
+    if sonar is not None:
         summary["sonar"] = _write_sonar(env, result, title, out_dir)
     if video:
         from marinejax.render import render_video
@@ -85,18 +86,34 @@ def _write(env, result: dict, summary: dict[str, Any], title: str, out_dir: Path
         try:
             summary["video"] = str(render_video(model, result["position"][0], result["quaternion"][0], result["target"][0],
                                                 1.0 / env.config.control_dt, out_dir / "episode0", env.vehicle.sys.qpos_adr,
-                                                result["actuators"][0], env.vehicle.actuator_names))
+                                                result["actuators"][0], env.vehicle.actuator_names, sonar))
         except RuntimeError as err:
             summary["video_error"] = str(err)
     (out_dir / "eval.json").write_text(json.dumps(summary, indent=2))
     return summary
 
 
+def _sonar_trace(env, result: dict, episode: int):
+    """The sonar's readings in one episode, to draw (`render.SonarTrace`): the observed ranges (a
+    beam reading max_range had no echo) and, with `intensity`, the intensities."""
+    from marinejax.plant.rays import fan
+    from marinejax.render import SonarTrace
+
+    sonar = env.plant.scene_sensors.sensors["sonar"]
+    c = sonar.config
+    ranges = result["sonar"][episode]
+    return SonarTrace(ranges=ranges, hit=ranges < c.max_range, intensity=result["sonar_intensity"][episode] if c.intensity else None,
+                      mount=np.asarray(c.position, np.float64), directions=fan(c.beams, c.horizontal_fov, 1, 0.0, c.tilt)[:, 0],
+                      azimuth=np.asarray(sonar.azimuth), max_range=c.max_range)
+
+
 def _write_sonar(env, result: dict, title: str, out_dir: Path) -> dict[str, str]:
-    """The sonar's range images: every episode's in sonar.npz (ranges (E, T, beams), m; time, s;
-    azimuth, rad, positive to the left) and episode 0's as a PNG."""
+    """The sonar's range images: every episode's in sonar.npz (ranges (E, T, beams), m; with the
+    sonar's `intensity`, intensity (E, T, beams), 0-1; time, s; azimuth, rad, positive to the left)
+    and episode 0's as a PNG."""
     sonar = env.plant.scene_sensors.sensors["sonar"]
     azimuth = sonar.azimuth
-    np.savez_compressed(out_dir / "sonar.npz", ranges=result["sonar"].astype(np.float32), time=result["time"], azimuth=azimuth)
+    extra = {"intensity": result["sonar_intensity"].astype(np.float32)} if sonar.config.intensity else {}
+    np.savez_compressed(out_dir / "sonar.npz", ranges=result["sonar"].astype(np.float32), time=result["time"], azimuth=azimuth, **extra)
     png = plot_sonar(result, np.degrees(azimuth), sonar.config.max_range, f"{title}: sonar", out_dir / "sonar.png")
     return {"ranges": str(out_dir / "sonar.npz"), "image": str(png)}

@@ -177,6 +177,11 @@ def _docking_from_station_keeping(vehicle: str, disturbed: str) -> tuple[PPOConf
 _TUNED_ENVS.update({f"{vehicle}-Docking{d}": _docking_from_station_keeping(vehicle, d) for vehicle in ("BlueROV2Heavy", "BlueROV2")
                     for d in ("", "Disturbed")})
 
+# ROV terrain following (the same task name as the torpedo's, another class; 10 Hz, 60 s episodes):
+# the tracking recipe, a reference moving along the transect as tracking's does along its trajectory.
+_TUNED_ENVS.update({f"{vehicle}-TerrainFollowing{d}": (_TRACKING, {}) for vehicle in ("BlueROV2Heavy", "BlueROV2")
+                    for d in ("", "Disturbed")})
+
 
 def tuned_config(env_name: str, algorithm: str = "ppo") -> TrainConfig:
     """The tuned training settings of env `env_name` (raises listing the registered envs if unknown)
