@@ -19,7 +19,7 @@ its hull's (the body, not appendages such as fins) also bit 2; a scene geom with
 (contype = conaffinity = 1) touches every collision geom, one with contype = conaffinity = 2 only
 hulls. MJX collides every pair that may touch at every step, so a geom that only a hull can reach
 first should say so (the torpedo dock's bars: the fins, 1.5 m behind the nose, reach them only
-after the task has ended).
+once the nose is past the tube's entrance, where the latch holds the vehicle).
 
 A dock that holds a vehicle: a scene site named `latch` is the seat where a docked vehicle's site
 `nose` is held. `compose` joins the two by a weld equality constraint named `latch`, open (inactive)
