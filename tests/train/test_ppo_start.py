@@ -86,7 +86,8 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
 def test_every_recipe_that_starts_from_a_policy_fits_it():
     # the REMUS's curved paths and waypoints, every disturbed path and its docking start from its
     # circle policy, its disturbed autopilot from its autopilot policy; the four-fin variant (another
-    # action size) trains from scratch; each ROV's docking starts from its station keeping
+    # action size) from the same REMUS policies, and its autopilot and circle from the REMUS's; each
+    # ROV's docking starts from its station keeping
     import dataclasses
 
     from marinejax.train.hyperparams import tuned_config
@@ -94,8 +95,11 @@ def test_every_recipe_that_starts_from_a_policy_fits_it():
     starting = {name: tuned_config(name).ppo for name in mj.list_envs() if tuned_config(name).ppo.init_from}
     paths_ = {f"Remus100-{p}Following" for p in ("Helix", "Lemniscate", "Waypoint")} | {"Remus100-Docking"}
     rovs = {f"{v}-Docking{d}" for v in ("BlueROV2", "BlueROV2Heavy") for d in ("", "Disturbed")}
-    assert set(starting) == paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}} | rovs
+    remus = paths_ | {f"{n}Disturbed" for n in paths_ | {"Remus100-CircleFollowing", "Remus100-Autopilot"}}
+    four_fin = {name.replace("Remus100-", "Remus100FourFin-") for name in remus | {"Remus100-CircleFollowing", "Remus100-Autopilot"}}
+    assert set(starting) == remus | four_fin | rovs
     assert starting["Remus100-AutopilotDisturbed"].init_from == "Remus100-Autopilot"
+    assert {starting[name].init_from for name in four_fin} == {"Remus100-Autopilot", "Remus100-CircleFollowing"}
     assert starting["BlueROV2-DockingDisturbed"].init_from == "BlueROV2-StationKeepingDisturbed"
     for name, config in starting.items():
         # the docking's warm-up for its new field, on fewer envs and steps: what is checked is the fit
@@ -164,6 +168,58 @@ def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_va
     for a, b in zip(ours, theirs, strict=True):
         assert np.abs(np.asarray(b)).max() > 0.1
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-5)
+
+
+def test_the_four_fin_variant_starts_from_the_remus_policy_flying_its_fins_alike():
+    # the shipped REMUS circle policy (rudder, stern planes, propeller) on the four-fin variant's
+    # docking (four fins, and the new `dock` field): each fin takes the command of the pair it
+    # belongs to, signed as `steering_mix` says, so the policy's actions and value are the source's
+    # wherever the fins' states follow their pair's
+    from brax.training.acme import running_statistics
+
+    from marinejax.envs.symmetry import FIELD_SIGNS
+    from marinejax.train.checkpoints import load_params
+
+    env = mj.make("Remus100FourFin-Docking")
+    config = ppo.Config(init_from="Remus100-CircleFollowing", mirror_symmetric=True, normalizer_warmup=3, num_envs=8, batch_size=8,
+                        num_minibatches=2)
+    normalizer, policy, value = ppo.initial_params(env, config, seed=2)
+    _, source_env, (s_normalizer, s_policy, s_value), _ = load_params("Remus100-CircleFollowing")
+    actions = ppo.action_map(source_env, env, "the circle policy")
+    # rudder to the top (+) and bottom (−) fins, stern planes to the port (−) and starboard (+) ones
+    np.testing.assert_array_equal(actions.take, [0, 0, 1, 1, 2])
+    np.testing.assert_array_equal(actions.sign, [1, -1, -1, 1, 1])
+
+    obs = np.array(ppo.warmup_observations(env, config, seed=7)).reshape(-1, env.observation_size)
+    fields, s_fields = env.observation_fields(), source_env.observation_fields()
+    s_obs = np.zeros((len(obs), source_env.observation_size), np.float32)
+    for name, s in s_fields.items():
+        if FIELD_SIGNS[name] == "action":  # the fins follow their pair: the first fin's state, signed
+            first = [list(actions.take).index(i) for i in range(source_env.action_size)]
+            s_obs[:, s] = obs[:, fields[name]][:, first] * actions.sign[first]
+            obs[:, fields[name]] = s_obs[:, s][:, actions.take] * actions.sign
+        else:
+            s_obs[:, s] = obs[:, fields[name]]
+    assert np.abs(obs[:, fields["actuators"]]).max() > 0.1  # the fins are deflected
+    networks = ppo.env_network_factory(config, env)(env.observation_size, env.action_size,
+                                                    preprocess_observations_fn=running_statistics.normalize)
+    s_networks = ppo.env_network_factory(config, source_env)(source_env.observation_size, source_env.action_size,
+                                                             preprocess_observations_fn=running_statistics.normalize)
+    ours = np.asarray(networks.policy_network.apply(normalizer, policy, obs))
+    theirs = np.asarray(s_networks.policy_network.apply(s_normalizer, s_policy, s_obs))
+    loc, scale = np.split(theirs, 2, axis=-1)
+    assert np.abs(loc).max() > 0.1
+    np.testing.assert_allclose(ours, np.concatenate([loc[:, actions.take] * actions.sign, scale[:, actions.take]], -1), rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(networks.value_network.apply(normalizer, value, obs)),
+                               np.asarray(s_networks.value_network.apply(s_normalizer, s_value, s_obs)), rtol=1e-5, atol=1e-4)
+
+
+def test_a_policy_whose_actions_another_vehicle_can_only_mix_is_refused():
+    four_fin, remus, rov = mj.make("Remus100FourFin-Autopilot"), mj.make("Remus100-Autopilot"), mj.make(ENV)
+    with pytest.raises(UserError, match=re.escape("x has action size 5, this run 3, and its actuators map to this vehicle's only by mixing")):
+        ppo.action_map(four_fin, remus, "x")
+    with pytest.raises(UserError, match=re.escape("x has action size 3, this run 8 (--ppo init_from= trains from scratch)")):
+        ppo.action_map(remus, rov, "x")
 
 
 @pytest.mark.parametrize("settings, message", [

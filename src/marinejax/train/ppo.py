@@ -68,10 +68,12 @@ class Config:
     # "Remus100-CircleFollowing") whose best checkpoint starts this run: its observation normalizer,
     # policy and value networks; the optimizer and the step count start anew (a curriculum: the REMUS
     # 100's helix, lemniscate, waypoints and docking start from its circle policy). Its actions must
-    # be this env's and mean the same, its networks have this config's sizes and symmetry, and its
-    # observation fields be among this env's, with their sizes: fields this env adds (the docking's
-    # `dock`) enter with first-layer weights 0, so the run starts from the source's policy, and
-    # normalizer statistics from `normalizer_warmup` steps, which must then be > 0. "": from scratch.
+    # be this env's and mean the same, or be carried out by this vehicle's actuators each following one
+    # source action (`action_map`: the four-fin variant from the REMUS 100's policies), its networks
+    # have this config's sizes and symmetry, and its observation fields be among this env's, with
+    # their sizes: fields this env adds (the docking's `dock`) enter with first-layer weights 0, so the
+    # run starts from the source's policy, and normalizer statistics from `normalizer_warmup` steps,
+    # which must then be > 0. "": from scratch.
     init_from: str = ""
     # The exploration noise. Brax's policy is a tanh-normal whose std (before the tanh) is an output
     # of the policy network, softplus(x) + 0.001 (about 0.69 at initialisation), and ignores Brax's own
@@ -385,33 +387,116 @@ def from_checkpoint(env, config: Config, seed: int):
     from marinejax.train.checkpoints import load_params  # the checkpoint layer reads the algorithms' configs
 
     source, source_env, params, ckpt = load_params(config.init_from)
+    what = f"ppo 'init_from' {config.init_from!r} ({ckpt})"
     if source.algorithm != "ppo":
         raise UserError(f"ppo 'init_from' {config.init_from!r} is a {source.algorithm.upper()} run; a PPO run starts from a PPO checkpoint")
-    mine = (env.action_size, tuple(config.policy_hidden), tuple(config.value_hidden), config.mirror_symmetric)
-    theirs = (source_env.action_size, tuple(source.agent.policy_hidden), tuple(source.agent.value_hidden), source.agent.mirror_symmetric)
-    names = ("action size", "policy_hidden", "value_hidden", "mirror_symmetric")
-    for name, a, b in zip(names, mine, theirs):
+    mine = (tuple(config.policy_hidden), tuple(config.value_hidden), config.mirror_symmetric)
+    theirs = (tuple(source.agent.policy_hidden), tuple(source.agent.value_hidden), source.agent.mirror_symmetric)
+    for name, a, b in zip(("policy_hidden", "value_hidden", "mirror_symmetric"), mine, theirs):
         if a != b:
-            raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) has {name} {b}, this run {a} "
-                            "(--ppo init_from= trains from scratch)")
-    rows = input_rows(source_env, env, f"ppo 'init_from' {config.init_from!r} ({ckpt})")
-    if rows is None:
+            raise UserError(f"{what} has {name} {b}, this run {a} (--ppo init_from= trains from scratch)")
+    actions = None if env.action_size == source_env.action_size else action_map(source_env, env, what)
+    rows = input_rows(source_env, env, what, actions)
+    if actions is not None:
+        params = map_actions(params, actions)
+    new = [] if rows is None else [name for name, s in env.observation_fields().items() if (rows[s] < 0).all()]
+    if not new:
         if config.normalizer_warmup:
             raise UserError(f"ppo 'normalizer_warmup' {config.normalizer_warmup} has nothing to warm: 'init_from' "
                             f"{config.init_from!r} ({ckpt}) has this env's observation fields and its normalizer (set it to 0)")
-        return params
+        return params if rows is None else widen_inputs(params, rows, None, input_gains(env, actions))
     if not config.normalizer_warmup:
-        new = [name for name, s in env.observation_fields().items() if (rows[s] < 0).all()]
-        raise UserError(f"ppo 'init_from' {config.init_from!r} ({ckpt}) lacks this env's observation fields {new}: set "
-                        "--ppo normalizer_warmup=N, the random-action steps whose observations give their normalizer statistics")
-    return widen_inputs(params, rows, warmup_normalizer(env, config, seed))
+        raise UserError(f"{what} lacks this env's observation fields {new}: set --ppo normalizer_warmup=N, the "
+                        "random-action steps whose observations give their normalizer statistics")
+    return widen_inputs(params, rows, warmup_normalizer(env, config, seed), input_gains(env, actions))
 
 
-def input_rows(source_env, env, what: str):
+@dataclasses.dataclass(frozen=True, eq=False)
+class ActionMap:
+    """This env's action from a source policy's: action = sign * source_action[take] (shapes (A,)),
+    each source component copied to `count[i]` components (shape (A_source,))."""
+
+    take: Any
+    sign: Any
+    count: Any
+
+
+def action_map(source_env, env, what: str) -> ActionMap:
+    """How `env`'s vehicle carries out the actions of `source_env`'s when the two steer alike with
+    other actuators: torpedoes whose fins are laid out differently (`actuators.fin.steering_mix`:
+    the REMUS 100's rudder and stern-plane pair, the four-fin variant's independent fins), each of
+    this env's actuators following one source command, signed. Else a UserError naming the sizes."""
+    import numpy as np
+
+    from marinejax.actuators.fin import steering_mix
+
+    def mix(e):
+        if e.config.action_mode != "thrusters":
+            return None
+        try:
+            return steering_mix(e.plant.sys.actuators)
+        except UserError:  # not a torpedo
+            return None
+
+    theirs, mine = mix(source_env), mix(env)
+    problem = f"{what} has action size {source_env.action_size}, this run {env.action_size}"
+    if theirs is None or mine is None:
+        raise UserError(f"{problem} (--ppo init_from= trains from scratch)")
+    matrix = mine @ np.linalg.pinv(theirs)  # this env's action per unit source action
+    take = np.argmax(np.abs(matrix), axis=1)
+    sign = np.sign(matrix[np.arange(len(take)), take]).astype(np.float32)
+    exact = np.zeros_like(matrix)
+    exact[np.arange(len(take)), take] = sign
+    if not np.allclose(matrix, exact, atol=1e-6) or set(take) != set(range(source_env.action_size)):
+        raise UserError(f"{problem}, and its actuators map to this vehicle's only by mixing commands "
+                        "(--ppo init_from= trains from scratch)")
+    return ActionMap(take=take, sign=sign, count=np.bincount(take, minlength=source_env.action_size))
+
+
+def map_actions(params, actions: ActionMap):
+    """`params` (normalizer, policy, value) whose policy outputs `actions`' actions: the last layer's
+    location columns taken and signed by the map (tanh is odd, so each action is exactly the mapped
+    source action), its std columns taken."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    normalizer, policy, value = params
+    layers = policy["params"]
+    last = max((name for name in layers if name.startswith("hidden_")), key=lambda name: int(name.split("_")[1]))
+    size = np.asarray(layers[last]["bias"]).shape[-1] // 2
+    columns = np.concatenate([actions.take, size + actions.take])
+    signs = np.concatenate([actions.sign, np.ones_like(actions.sign)])
+    mapped = {k: jnp.asarray(np.asarray(v)[..., columns] * signs, np.asarray(v).dtype) for k, v in layers[last].items()}
+    return normalizer, {**policy, "params": {**layers, last: mapped}}, value
+
+
+def input_gains(env, actions: ActionMap | None):
+    """Per component of `env`'s observation, the factor its source component is read with under
+    `actions`: sign / count on the fields that hold one entry per actuator (`symmetry.FIELD_SIGNS`
+    "action"), whose source component is then the mean of the signed components copying it; 1
+    elsewhere (None without a map)."""
+    import numpy as np
+
+    from marinejax.envs.symmetry import FIELD_SIGNS
+
+    if actions is None:
+        return None
+    gains = np.ones(env.observation_size, np.float32)
+    for name, s in env.observation_fields().items():
+        if FIELD_SIGNS.get(name) == "action":
+            gains[s] = actions.sign / actions.count[actions.take]
+    return gains
+
+
+def input_rows(source_env, env, what: str, actions: ActionMap | None = None):
     """Per component of `env`'s observation, the component of `source_env`'s observation holding the
     same field (−1 for a field the source lacks), or None where the two layouts are the same. Every
-    source field must be in `env` with its size, else a UserError naming them."""
+    source field must be in `env` with its size, else a UserError naming them; with `actions`, the
+    fields with one entry per actuator (`symmetry.FIELD_SIGNS` "action") take the mapped source
+    actuator's."""
     import numpy as np
+
+    from marinejax.envs.symmetry import FIELD_SIGNS
 
     sizes = (source_env.observation_size, env.observation_size)
     if any(isinstance(size, dict) for size in sizes):  # a privileged observation: its own layout, not mapped by field
@@ -420,43 +505,52 @@ def input_rows(source_env, env, what: str):
         return None
     theirs, mine = source_env.observation_fields(), env.observation_fields()
     missing = [name for name in theirs if name not in mine]
-    resized = [name for name, s in theirs.items() if name in mine and s.stop - s.start != mine[name].stop - mine[name].start]
+    per_actuator = {name for name in theirs if actions is not None and FIELD_SIGNS.get(name) == "action"}
+    resized = [name for name, s in theirs.items()
+               if name in mine and name not in per_actuator and s.stop - s.start != mine[name].stop - mine[name].start]
     if missing or resized:
         raise UserError(f"{what} has observation size {sizes[0]}, this run {sizes[1]}: this env lacks its fields {missing}"
                         f"{f' and sizes differently {resized}' if resized else ''} (--ppo init_from= trains from scratch)")
     rows = np.full(env.observation_size, -1)
     for name, s in theirs.items():
-        rows[mine[name]] = np.arange(s.start, s.stop)
+        rows[mine[name]] = s.start + actions.take if name in per_actuator else np.arange(s.start, s.stop)
     return None if np.array_equal(rows, np.arange(sizes[0])) else rows
 
 
-def widen_inputs(params, rows, warm):
+def widen_inputs(params, rows, warm, gains=None):
     """`params` (normalizer, policy, value) of a source observation laid out again by `rows`
     (`input_rows`): each component's normalizer statistics and first-layer weights from the source
     component it holds, and for the fields the source lacks (rows −1) first-layer weights 0, so that
     the networks compute the source's functions, and the mean and std of the warm-up normalizer
-    `warm` (their summed variance scaled to the source's count, as if the source had seen them)."""
+    `warm` (their summed variance scaled to the source's count, as if the source had seen them; None
+    where no field is new). `gains` (`input_gains`): per component, the factor the source component
+    is read with; its sign also signs the normalizer's mean, so that each normalized source
+    component is the gain-weighted sum of the normalized components holding it."""
     import jax.numpy as jnp
     import numpy as np
 
     normalizer, policy, value = params
     new = rows < 0
     take = np.maximum(rows, 0)
+    gains = np.ones(len(rows), np.float32) if gains is None else np.asarray(gains)
     count = lambda state: float(int(state.count.hi) * 2**32 + int(state.count.lo))  # noqa: E731  Brax's UInt64 count
 
-    def merge(source, fresh):
+    def merge(source, fresh, factor=1.0):
         source = np.asarray(source)
-        return jnp.asarray(np.where(new, np.asarray(fresh), source[take]), source.dtype)
+        fresh = source[take] if fresh is None else np.asarray(fresh)
+        return jnp.asarray(np.where(new, fresh, source[take] * factor), source.dtype)
 
-    normalizer = normalizer.replace(mean=merge(normalizer.mean, warm.mean), std=merge(normalizer.std, warm.std),
-                                    summed_variance=merge(normalizer.summed_variance, np.asarray(warm.summed_variance) * count(normalizer) / count(warm)))
+    fresh_variance = None if warm is None else np.asarray(warm.summed_variance) * count(normalizer) / count(warm)
+    normalizer = normalizer.replace(mean=merge(normalizer.mean, None if warm is None else warm.mean, np.sign(gains)),
+                                    std=merge(normalizer.std, None if warm is None else warm.std),
+                                    summed_variance=merge(normalizer.summed_variance, fresh_variance))
 
     def first_layer(network):
         layers = network["params"]
         if "hidden_0" not in layers:
             raise ValueError(f"a Brax MLP's first layer is 'hidden_0'; these params have {sorted(layers)}")
         kernel = np.asarray(layers["hidden_0"]["kernel"])
-        widened = jnp.asarray(np.where(new[:, None], 0.0, kernel[take]), kernel.dtype)
+        widened = jnp.asarray(np.where(new[:, None], 0.0, kernel[take] * gains[:, None]), kernel.dtype)
         return {**network, "params": {**layers, "hidden_0": {**layers["hidden_0"], "kernel": widened}}}
 
     return normalizer, first_layer(policy), first_layer(value)
