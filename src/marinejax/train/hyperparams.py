@@ -98,9 +98,9 @@ _TUNED.update({"HelixFollowing": _CURVED, "LemniscateFollowing": _CURVED})
 # The torpedo autopilot (120 s episodes of two set-points): a 10 s horizon (γ 0.99 at 10 Hz), 20 M
 # steps and Brax's usual entropy bonus, 1e-2. Brax's entropy estimate includes the tanh's
 # log-Jacobian at the drawn action, so the bonus pulls the policy off fin angles held at their
-# limits; with our 1e-4 the fins stayed there for 15-20 M steps. Seeds 0-4 reach 0.1 m of depth error
-# in 98-229 s (4.2-9.5 M steps) and end within 0.016-0.064 m, 1.2° and 0.024 m/s; with 1e-4, 6.3-17.9 M
-# steps and one seed 3.6° and 0.30 m/s off (docs/results.md).
+# limits; with our 1e-4 the fins stayed there for 15-20 M steps. Seeds 0-4 evaluate within 0.1 m of
+# depth after 4.2-9.5 M steps (with 1e-4: 6.3-17.9 M) and end within 0.016-0.064 m, 1.2° and
+# 0.024 m/s (with 1e-4 one seed 3.6° and 0.30 m/s off) (docs/results.md).
 _AUTOPILOT_1E4 = dataclasses.replace(_STATION, num_timesteps=20_000_000, discounting=0.99)
 _TUNED["Autopilot"] = (dataclasses.replace(_AUTOPILOT_1E4, entropy_cost=1e-2), {})
 # Terrain following: the autopilot's recipe with the entropy 1e-4 of its measurements, from scratch:
@@ -163,8 +163,9 @@ _TUNED_ENVS["Remus100-DockingDisturbed"] = (dataclasses.replace(_DOCK, num_times
 # recipe starts from, or for the REMUS's from-scratch autopilot and circle from the REMUS's shipped
 # policy of the task, each fin following the command of its pair (`ppo.action_map`), and fine-tunes
 # with the REMUS's settings. Before any training the REMUS autopilot flies the four-fin autopilot
-# within 0.011 m of depth, 0.9° and 0.016 m/s, its circle policy the circle within 0.038 m
-# (docs/results.md: seeds 0-4).
+# within 0.011 m of depth, 0.9° and 0.016 m/s, its circle policy the circle within 0.038 m; fine-tuned,
+# seeds 0-4 of the nominal tasks land in 55-188 s (docs/results.md). The disturbed variants' recipes
+# are the REMUS's, not yet measured on this vehicle.
 _FOUR_FIN = {"Autopilot": (dataclasses.replace(_AUTOPILOT_1E4, num_timesteps=2_000_000, num_evals=10, init_from="Remus100-Autopilot"), {}),
              "CircleFollowing": (dataclasses.replace(_CIRCLE, num_timesteps=2_000_000, init_from="Remus100-CircleFollowing"), {})}
 _FOUR_FIN.update({task: _TUNED_ENVS[f"Remus100-{task}"] for task in ("AutopilotDisturbed", "CircleFollowingDisturbed")})
