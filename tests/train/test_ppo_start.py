@@ -131,13 +131,19 @@ def test_init_from_something_that_is_not_a_run_lists_the_shipped_policies(tmp_pa
         ppo.initial_params(mj.make(ENV), ppo.Config(init_from=str(tmp_path / "nowhere")), seed=0)
 
 
+def _networks(config, env):
+    """The PPO networks of `config` for `env`, normalizing their observations as Brax's PPO does."""
+    from brax.training.acme import running_statistics
+
+    return ppo.env_network_factory(config, env)(env.observation_size, env.action_size,
+                                                preprocess_observations_fn=running_statistics.normalize)
+
+
 def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_value():
     # the shipped circle policy on the torpedo's docking, whose observation adds the `dock` field
     # (the latch point from the nose) amid the circle's: the widened networks compute the source's
     # functions of the fields they share, whatever the new field holds, and the new field's
     # normalizer holds the warm-up rollout's statistics
-    from brax.training.acme import running_statistics
-
     from marinejax.train.checkpoints import load_params
 
     env = mj.make("Remus100-Docking")
@@ -158,10 +164,7 @@ def test_init_from_a_policy_without_a_field_starts_from_the_source_policy_and_va
 
     obs = np.array(ppo.warmup_observations(env, config, seed=7)).reshape(-1, env.observation_size)
     obs[::2, dock] += np.array([5.0, -3.0, 2.0])  # any value of the new field: no effect at the start
-    networks = ppo.env_network_factory(config, env)(env.observation_size, env.action_size,
-                                                    preprocess_observations_fn=running_statistics.normalize)
-    s_networks = ppo.env_network_factory(config, source_env)(source_env.observation_size, env.action_size,
-                                                             preprocess_observations_fn=running_statistics.normalize)
+    networks, s_networks = _networks(config, env), _networks(config, source_env)
     ours = networks.policy_network.apply(normalizer, policy, obs), networks.value_network.apply(normalizer, value, obs)
     theirs = (s_networks.policy_network.apply(s_normalizer, s_policy, obs[:, keep]),
               s_networks.value_network.apply(s_normalizer, s_value, obs[:, keep]))
@@ -175,8 +178,6 @@ def test_the_four_fin_variant_starts_from_the_remus_policy_flying_its_fins_alike
     # docking (four fins, and the new `dock` field): each fin takes the command of the pair it
     # belongs to, signed as `steering_mix` says, so the policy's actions and value are the source's
     # wherever the fins' states follow their pair's
-    from brax.training.acme import running_statistics
-
     from marinejax.envs.symmetry import FIELD_SIGNS
     from marinejax.train.checkpoints import load_params
 
@@ -193,18 +194,15 @@ def test_the_four_fin_variant_starts_from_the_remus_policy_flying_its_fins_alike
     obs = np.array(ppo.warmup_observations(env, config, seed=7)).reshape(-1, env.observation_size)
     fields, s_fields = env.observation_fields(), source_env.observation_fields()
     s_obs = np.zeros((len(obs), source_env.observation_size), np.float32)
+    first = [list(actions.take).index(i) for i in range(source_env.action_size)]  # each command's first actuator
     for name, s in s_fields.items():
         if FIELD_SIGNS[name] == "action":  # the fins follow their pair: the first fin's state, signed
-            first = [list(actions.take).index(i) for i in range(source_env.action_size)]
             s_obs[:, s] = obs[:, fields[name]][:, first] * actions.sign[first]
             obs[:, fields[name]] = s_obs[:, s][:, actions.take] * actions.sign
         else:
             s_obs[:, s] = obs[:, fields[name]]
     assert np.abs(obs[:, fields["actuators"]]).max() > 0.1  # the fins are deflected
-    networks = ppo.env_network_factory(config, env)(env.observation_size, env.action_size,
-                                                    preprocess_observations_fn=running_statistics.normalize)
-    s_networks = ppo.env_network_factory(config, source_env)(source_env.observation_size, source_env.action_size,
-                                                             preprocess_observations_fn=running_statistics.normalize)
+    networks, s_networks = _networks(config, env), _networks(config, source_env)
     ours = np.asarray(networks.policy_network.apply(normalizer, policy, obs))
     theirs = np.asarray(s_networks.policy_network.apply(s_normalizer, s_policy, s_obs))
     loc, scale = np.split(theirs, 2, axis=-1)
