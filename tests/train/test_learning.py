@@ -21,7 +21,8 @@ _REPRESENTATIVE = {"BlueROV2Heavy-StationKeeping", "BlueROV2-StationKeepingDistu
                                       for name in sorted(shipped_policies())])
 def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
     """Every shipped policy (both ROVs, four tasks each, and their disturbed variants; the REMUS's
-    waypoint following and autopilot)."""
+    circle and waypoint following and autopilot; the four-fin variant's circle following and
+    autopilot)."""
     run = shipped_policies()[env_name]
     recorded = json.loads((run / "eval.json").read_text())
     result = evaluate_run(env_name, out_dir=tmp_path, episodes=recorded["episodes"], seed=recorded["seed"], video=False)
