@@ -165,9 +165,8 @@ _TUNED_ENVS["Remus100-DockingDisturbed"] = (dataclasses.replace(_DOCK, num_times
 # with the REMUS's settings. Before any training the REMUS autopilot flies the four-fin autopilot
 # within 0.011 m of depth, 0.9° and 0.016 m/s, its circle policy the circle within 0.038 m; fine-tuned,
 # seeds 0-4 of the nominal tasks land in 55-188 s, of the disturbed autopilot within 0.035-0.046 m in
-# 196-303 s, the disturbed circle, helix and waypoints within 0.053-0.082 m and the disturbed
-# docking 78-94 % docked (docs/results.md). The disturbed lemniscate's recipe is the REMUS's, not yet
-# measured on this vehicle.
+# 196-303 s, the disturbed paths within 0.053-0.085 m and the disturbed docking 78-94 % docked
+# (docs/results.md).
 _FOUR_FIN = {"Autopilot": (dataclasses.replace(_AUTOPILOT_1E4, num_timesteps=2_000_000, num_evals=10, init_from="Remus100-Autopilot"), {}),
              "CircleFollowing": (dataclasses.replace(_CIRCLE, num_timesteps=2_000_000, init_from="Remus100-CircleFollowing"), {})}
 _FOUR_FIN.update({task: _TUNED_ENVS[f"Remus100-{task}"] for task in ("AutopilotDisturbed", "CircleFollowingDisturbed")})
