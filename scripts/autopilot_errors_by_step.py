@@ -3,8 +3,9 @@
     python scripts/autopilot_errors_by_step.py RUN_OR_CHECKPOINT_OR_SHIPPED_NAME
 
 Flies the policy on its env's 64 evaluation episodes (seed 12345) and prints the mean |depth error|
-(m, as observed: clipped to the env's depth_clip) over the last 10 s of the second set-point's segment, split by that segment's depth step (dives
-and climbs of more than 5 m, smaller changes), then the ten worst episodes with their set-points.
+(m, as observed: clipped to the env's depth_clip) over the last `settled` s of the second set-point's
+segment, split by that segment's depth step (dives and climbs of more than 5 m, smaller changes),
+then the ten worst episodes with their set-points.
 """
 
 from __future__ import annotations
