@@ -336,12 +336,17 @@ class Identifier:
             euler = jax.vmap(quat_to_euler)(vs.quaternion)[:, :2]
             return jnp.concatenate([vs.velocity, vs.angular_velocity, euler], axis=-1)
 
+        n = len(self.start_rows)
         if offset is None:
-            offset = jnp.zeros((len(self.start_rows), 8))
+            offset = jnp.zeros((n, 8))
         # windows in batches: one vmap over every window of a long log (thousands of rollouts with
-        # their tangents) hangs XLA's CPU runtime (jax 0.10.2)
-        return jax.lax.map(lambda args: window(*args), (self.start, self.start_euler, offset, history[self.start_rows], self.commands),
-                           batch_size=WINDOW_BATCH)
+        # their tangents) hangs XLA's CPU runtime (jax 0.10.2). Padded to whole batches with copies
+        # of the last window, dropped from the result: lax.map would trace the rollout a second time
+        # for a last, partial batch, and compiling it twice was most of a fit's time.
+        pad = -n % WINDOW_BATCH
+        xs = jax.tree.map(lambda a: jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)]),
+                          (self.start, self.start_euler, offset, history[self.start_rows], self.commands))
+        return jax.lax.map(lambda args: window(*args), xs, batch_size=WINDOW_BATCH)[:n]
 
     def _residuals(self, z: jnp.ndarray, offset: jnp.ndarray) -> jnp.ndarray:
         """(windows, steps · 8) normalised residuals; z: normalised parameters, offset: (windows, 8)."""
@@ -353,11 +358,16 @@ class Identifier:
     def _linearize(self, z: jnp.ndarray, offset: jnp.ndarray):
         """Residuals with their Jacobians in z (windows, rows, 24) and in each window's own start
         offset (windows, rows, 8). A window depends only on its own start, so shifting every
-        window's offset at once gives every block in 8 directional derivatives."""
-        r = self._residuals(z, offset)
-        jz = jax.jacfwd(self._residuals)(z, offset)
-        js = jax.jacfwd(lambda e: self._residuals(z, offset + e[None]))(jnp.zeros(8))
-        return r, jz, js
+        window's offset at once gives every block in 8 directional derivatives; all 32 directions
+        go through one forward-mode pass (one rollout to compile, not three)."""
+        n = z.shape[0]
+
+        def shifted(v):
+            r = self._residuals(z + v[:n], offset + v[n:][None])
+            return r, r
+
+        jac, r = jax.jacfwd(shifted, has_aux=True)(jnp.zeros(n + 8, z.dtype))
+        return r, jac[..., :n], jac[..., n:]
 
     def fit(self, iterations: int = 30, progress: Callable[[str], None] | None = None, coarse: bool = True,
             start: np.ndarray | None = None, tolerance: float = 1e-6) -> FitResult:
