@@ -57,6 +57,7 @@ def test_shipped_sb3_vec_env_follows_sb3_conventions():
     assert not np.array_equal(obs, np.stack([info["terminal_observation"] for info in infos]))  # already reset
 
 
+@pytest.mark.slow  # a learning check, and a chaotic one: it runs compiled as users' runs are (conftest.py)
 def test_sb3_ppo_on_the_shipped_vec_env_raises_the_return():
     from stable_baselines3 import PPO
     from stable_baselines3.common.evaluation import evaluate_policy

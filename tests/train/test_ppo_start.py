@@ -83,12 +83,21 @@ def test_init_from_hands_brax_the_checkpoint_s_params_and_a_resume_its_own(monke
     assert calls[-1]["restore_params"] is None and calls[-1]["restore_checkpoint_path"] == str(tmp_path / "checkpoint")
 
 
-def test_every_recipe_that_starts_from_a_policy_fits_it():
+def test_every_recipe_that_starts_from_a_policy_fits_it(monkeypatch):
     # the REMUS's curved paths and waypoints, every disturbed path and its docking start from its
     # circle policy, its disturbed autopilot from its autopilot policy; the four-fin variant (another
     # action size) from the same REMUS policies, and its autopilot and circle from the REMUS's; each
     # ROV's docking starts from its station keeping
     import dataclasses
+
+    def zero_observations(env, config, seed):
+        # what is checked is the fit (fields, sizes, actions): a docking's warm-up for its new field
+        # would compile a rollout per env (about 20 s each); test_init_from_a_policy_without_a_field_...
+        # checks its statistics
+        obs = jax.eval_shape(env.reset, jax.random.PRNGKey(seed)).obs
+        return jax.tree_util.tree_map(lambda s: np.zeros((1, config.num_envs, *s.shape), s.dtype), obs)
+
+    monkeypatch.setattr(ppo, "warmup_observations", zero_observations)
 
     from marinejax.train.hyperparams import tuned_config
 
@@ -102,8 +111,7 @@ def test_every_recipe_that_starts_from_a_policy_fits_it():
     assert {starting[name].init_from for name in four_fin} == {"Remus100-Autopilot", "Remus100-CircleFollowing"}
     assert starting["BlueROV2-DockingDisturbed"].init_from == "BlueROV2-StationKeepingDisturbed"
     for name, config in starting.items():
-        # the docking's warm-up for its new field, on fewer envs and steps: what is checked is the fit
-        config = dataclasses.replace(config, num_envs=8, normalizer_warmup=min(config.normalizer_warmup, 2))
+        config = dataclasses.replace(config, num_envs=8)
         params = ppo.initial_params(mj.make(name, **tuned_config(name).env_overrides), config, seed=0)
         assert len(params) == 3, name
 
