@@ -26,6 +26,11 @@ from marinejax.train import hyperparams, runner
 from marinejax.train.checkpoints import load_policy
 
 
+def _sum(base, residual, scale: float):
+    """The controller's action plus `scale` × the residual, within the action space."""
+    return jnp.clip(base + scale * residual, -1.0, 1.0)
+
+
 class Residual(Wrapper):
     """The env with `controller`'s action plus `scale` × the given action as its action."""
 
@@ -40,7 +45,7 @@ class Residual(Wrapper):
 
     def step(self, state, action):
         base, carry = self.controller.act(state.info["residual_carry"], state.obs, state.info)
-        state = self.env.step(state, jnp.clip(base + self.scale * action, -1.0, 1.0))
+        state = self.env.step(state, _sum(base, action, self.scale))
         state.info["residual_carry"] = carry
         return state
 
@@ -48,7 +53,7 @@ class Residual(Wrapper):
 def with_residual(controller: Controller, policy, scale: float) -> Controller:
     def act(carry, obs, info):
         base, carry = controller.act(carry, obs, info)
-        return jnp.clip(base + scale * policy(obs), -1.0, 1.0), carry
+        return _sum(base, policy(obs), scale), carry
 
     return Controller(init=controller.init, act=act)
 
