@@ -117,6 +117,15 @@ _TUNED.update({f"{task}Disturbed": settings for task, settings in list(_TUNED.it
 # Under disturbance the latest checkpoint was already within 1.3× of the best on every seed with the
 # constant rate, the recipe its results were measured with (docs/results.md).
 _TUNED["StationKeepingDisturbed"] = (_STATION, {})
+# Nominal tracking (not its Fast and Disturbed variants, which keep _TRACKING): two CPU devices for
+# 3 M env steps, the rate held for the first half then falling linearly to 0. Seeds 0-4 of both
+# vehicles' three trajectories within 12 mm (Heavy 0.9-1.8 mm, BlueROV2 4.2-12.1 mm) in 36-41 s of
+# training with the compilation cache warm and 74-78 s from cold, against 64 and 117 s for 4 M steps
+# on one device (Heavy 0.9-1.2 mm, BlueROV2 3.1-7.0 mm). With 2 M steps four of the 19 seeds run ended
+# at 2.0-2.3 cm (docs/results.md).
+_TRACKING_2DEV = dataclasses.replace(_TRACKING, num_timesteps=3_000_000, cpu_devices=2, learning_rate_schedule="linear",
+                                     decay_start=0.5, final_learning_rate=0.0)
+_TUNED.update({task: (_TRACKING_2DEV, {}) for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 # Per env, where a vehicle needs its own recipe. The 6-thruster BlueROV2 learns station keeping's
 # position more slowly than the Heavy; with the sharp heading term at the task's weight 1 two seeds of
 # five ended at 17 and 26 mm, with half of it every seed within 1 cm and 0.2° (docs/results.md).
