@@ -232,6 +232,13 @@ def test_seeding_same_seed_same_episode_different_seeds_differ(single, vec):
     np.testing.assert_array_equal(vec.reset()[0], seedless)
 
 
+def test_an_env_whose_construction_failed_closes_quietly():
+    # gymnasium's VectorEnv.__del__ calls close() on an env whose __init__ raised before its renderer
+    # existed (stack 2's gymnasium printed an ignored AttributeError for every bad-argument test)
+    for cls in (MarineJaxEnv, MarineJaxVectorEnv):
+        cls.__new__(cls).close()
+
+
 def test_errors_are_clear(single, vec):
     single.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(8,\).*got shape \(9,\)"):

@@ -338,7 +338,15 @@ class MarineJaxEnv(gymnasium.Env):
         return self._frames(position, quaternion, self._state.info)
 
     def close(self) -> None:
-        self._frames.close()
+        _close_frames(self)
+
+
+def _close_frames(env) -> None:
+    """Close an adapter's renderer. Gymnasium's `__del__` closes an env whose `__init__` raised (a bad
+    argument) before the renderer existed: nothing to close then."""
+    frames = getattr(env, "_frames", None)
+    if frames is not None:
+        frames.close()
 
 
 # --- vector env ---------------------------------------------------------------------------
@@ -469,4 +477,4 @@ class MarineJaxVectorEnv(gymnasium.vector.VectorEnv):
         return tuple(self._frames(position[i], quaternion[i], jax.tree.map(lambda x, i=i: x[i], info)) for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
-        self._frames.close()
+        _close_frames(self)
