@@ -70,7 +70,8 @@ _TRACKING = dataclasses.replace(_STATION, num_timesteps=4_000_000, num_evals=10)
 # was 1.3-3.7× the best on three seeds of five of each vehicle; with the schedule on one or two,
 # and nine seeds of ten end more accurate (median 2.8 against 4.3 mm on the Heavy, 1.4 against
 # 3.9 mm on the BlueROV2; docs/results.md).
-_POSE = dataclasses.replace(_STATION, learning_rate_schedule="linear", decay_start=0.5, final_learning_rate=0.0)
+_DECAYING_RATE = {"learning_rate_schedule": "linear", "decay_start": 0.5, "final_learning_rate": 0.0}
+_POSE = dataclasses.replace(_STATION, **_DECAYING_RATE)
 _TUNED: dict[str, tuple[PPOConfig, dict[str, Any]]] = {
     "StationKeeping": (_POSE, {}),
     "CircleTracking": (_TRACKING, {}),
@@ -123,8 +124,7 @@ _TUNED["StationKeepingDisturbed"] = (_STATION, {})
 # training with the compilation cache warm and 74-78 s from cold, against 64 and 117 s for 4 M steps
 # on one device (Heavy 0.9-1.2 mm, BlueROV2 3.1-7.0 mm). With 2 M steps four of the 19 seeds run ended
 # at 2.0-2.3 cm (docs/results.md).
-_TRACKING_2DEV = dataclasses.replace(_TRACKING, num_timesteps=3_000_000, cpu_devices=2, learning_rate_schedule="linear",
-                                     decay_start=0.5, final_learning_rate=0.0)
+_TRACKING_2DEV = dataclasses.replace(_TRACKING, num_timesteps=3_000_000, cpu_devices=2, **_DECAYING_RATE)
 _TUNED.update({task: (_TRACKING_2DEV, {}) for task in ("CircleTracking", "HelixTracking", "LemniscateTracking")})
 # Per env, where a vehicle needs its own recipe. The 6-thruster BlueROV2 learns station keeping's
 # position more slowly than the Heavy; with the sharp heading term at the task's weight 1 two seeds of
