@@ -244,6 +244,20 @@ def test_latest_over_best_where_the_best_policy_makes_no_error():
     assert latest_over_best(0.0, 0.0) == 1.0 and latest_over_best(0.05, 0.0) == math.inf
 
 
+def test_bench_aggregate_gives_the_speed_error_of_tasks_that_command_a_speed():
+    # the torpedo autopilot's three targets are depth, heading and speed: all three over the seeds
+    from marinejax.benchmarks.training import aggregate
+
+    row = {"env": "Remus100-Autopilot", "seed": 0, "error_mean_m": 0.01, "heading_error_mean_deg": 1.0,
+           "speed_error_mean": 0.02, "latest_over_best": 1.0, "success_rate": 1.0, "wall_time_s": 100.0, "target_steps": None}
+    rows = [row, {**row, "seed": 1, "speed_error_mean": 0.06}, {**row, "seed": 2, "speed_error_mean": 0.03}]
+    out = aggregate(rows, target=0.1)
+    assert out["speed_error_median"] == pytest.approx(0.03) and out["speed_error_worst"] == pytest.approx(0.06)
+    assert out["heading_error_deg_worst"] == 1.0
+    # station keeping has no commanded speed: no speed figures rather than a made-up 0
+    assert "speed_error_median" not in aggregate([{**r, "speed_error_mean": None} for r in rows], target=0.1)
+
+
 @pytest.mark.slow
 def test_bench_training_writes_results_over_seeds_and_reuses_finished_seeds(tmp_path):
     args = ["bench", "training", "BlueROV2Heavy-StationKeeping", "--seeds", "2", "--out-dir", str(tmp_path),

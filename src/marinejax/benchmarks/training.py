@@ -106,6 +106,8 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         "env": env_name, "seed": seed, "run_dir": str(run_dir),
         "error_mean_m": ev["position_error_mean_m"], "error_p95_m": ev["position_error_p95_m"],
         "heading_error_mean_deg": ev.get("heading_error_mean_deg"),
+        # m/s, for tasks with a commanded speed (the torpedo autopilot), else None
+        "speed_error_mean": ev.get("speed_error_mean"),
         "success_rate": ev["success_rate"], "checkpoint": ev["checkpoint"],
         # the training evaluations' window error (m) of the best and of the last checkpoint: convergence
         "best_eval_error_m": (summary.get("best") or {}).get("window_error"),
@@ -113,6 +115,7 @@ def run_seed(env_name: str, seed: int, run_dir: Path, agent: dict, env: dict, ta
         # the latest checkpoint on the same evaluation episodes as the best (the training evaluations
         # draw new episodes each time, so the best of them is partly the luck of its episodes)
         "latest_error_mean_m": latest["position_error_mean_m"], "latest_heading_error_mean_deg": latest.get("heading_error_mean_deg"),
+        "latest_speed_error_mean": latest.get("speed_error_mean"),
         "latest_checkpoint": latest["checkpoint"], "latest_over_best": latest_over_best(latest["position_error_mean_m"], ev["position_error_mean_m"]),
         "env_steps": summary["env_steps"], "wall_time_s": summary["wall_time_s"],
         "target_m": target,
@@ -136,6 +139,7 @@ def aggregate(rows: list[dict[str, Any]], target: float) -> dict[str, Any]:
         "env": rows[0]["env"], "seeds": [r["seed"] for r in rows], "errors_m": err.tolist(),
         "error_median_m": float(np.median(err)), "error_worst_m": float(err.max()),
         **_median_worst("heading_error_deg", [r.get("heading_error_mean_deg") for r in rows]),
+        **_median_worst("speed_error", [r.get("speed_error_mean") for r in rows]),
         **_median_worst("latest_over_best", [r["latest_over_best"] for r in rows]),
         "success_median": float(np.median([r["success_rate"] for r in rows])),
         "success_worst": float(min(r["success_rate"] for r in rows)),
@@ -235,6 +239,7 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
                            args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache,
                            algorithm=args.algo)
             heading = "" if row["heading_error_mean_deg"] is None else f", heading {row['heading_error_mean_deg']:.2f}°"
+            heading += "" if row["speed_error_mean"] is None else f", speed {row['speed_error_mean']:.3f} m/s"
             print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m{heading}, success {100 * row['success_rate']:.0f} %, "
                   f"training {row['wall_time_s']:.0f} s; latest checkpoint {row['latest_error_mean_m']:.4f} m "
                   f"({row['latest_over_best']:.2f}× the best)", flush=True)
