@@ -152,6 +152,20 @@ def test_training_wrapper_redraws_every_episode(sk):
     assert int(s.info["steps"][0]) == 4 or int(s.info["steps"][0]) == 0
 
 
+def test_fixed_episodes_start_the_same_episodes_whatever_the_keys(sk):
+    # the training evaluations' env with ppo.fixed_eval_episodes: the same episodes every evaluation
+    fixed = jax.jit(E.wrap_for_training(E.FixedEpisodes(sk, seed=7), episode_length=4).reset)
+    plain = jax.jit(E.wrap_for_training(sk, episode_length=4).reset)
+    k1, k2 = jax.random.split(jax.random.PRNGKey(0), 3), jax.random.split(jax.random.PRNGKey(1), 3)
+    a = fixed(k1)
+    np.testing.assert_array_equal(np.asarray(a.obs), np.asarray(fixed(k2).obs))
+    # three different episodes, other ones from another seed; without it the keys decide
+    assert len({tuple(np.round(p, 6)) for p in np.asarray(a.info["task"].position)}) == 3
+    other = jax.jit(E.wrap_for_training(E.FixedEpisodes(sk, seed=8), episode_length=4).reset)(k1)
+    assert not np.allclose(np.asarray(other.obs), np.asarray(a.obs))
+    assert not np.allclose(np.asarray(plain(k1).obs), np.asarray(plain(k2).obs))
+
+
 def test_domain_randomization_changes_parameters_and_dynamics():
     still = {"velocity": 0.0, "angular_velocity": 0.0, "tilt": 0.0}
     env = E.make("BlueROV2Heavy-StationKeeping", randomization={"enabled": True, "net_buoyancy": (-3.0, 3.0)}, reset=still)

@@ -221,6 +221,22 @@ def test_sac_learns_and_its_run_evaluates_exports_and_refuses_resume(tmp_path):
 
 
 @pytest.mark.slow
+def test_fixed_eval_episodes_leave_training_unchanged_and_evaluate_the_same_episodes(tmp_path):
+    runs = {}
+    for name, extra in (("new", []), ("fixed", ["--ppo", "fixed_eval_episodes=true"])):
+        proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(tmp_path / name), "--no-video", *TINY, *extra)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        runs[name] = [json.loads(line) for line in (tmp_path / name / "metrics.jsonl").read_text().splitlines()]
+    def training(records):  # the losses, KL, rate and policy statistics; not the timings
+        return [{k: v for k, v in r.items() if k.startswith("training/") and k not in ("training/walltime", "training/sps")}
+                for r in records]
+
+    assert training(runs["new"])[-1]["training/policy_loss"] and training(runs["new"]) == training(runs["fixed"])
+    # the same policy at step 0 (the same seed), on other episodes: Brax's first evaluation's and ours differ
+    assert runs["new"][0]["eval/episode_window_error"] != runs["fixed"][0]["eval/episode_window_error"]
+
+
+@pytest.mark.slow
 def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_path):
     before = traced()
     # 2 evaluation envs: shapes no other run traced, which --no-compile-cache must not keep either

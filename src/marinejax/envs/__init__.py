@@ -29,7 +29,7 @@ from marinejax.envs.terrain_following import TerrainFollowing, TerrainFollowingC
 from marinejax.envs.torpedo_docking import TorpedoDocking, TorpedoDockingConfig
 from marinejax.envs.tracking import TrackingConfig, Tracking
 from marinejax.envs.trajectories import TrajectoryConfig
-from marinejax.envs.wrappers import wrap_for_training
+from marinejax.envs.wrappers import FixedEpisodes, wrap_for_training
 
 register_task("StationKeeping", StationKeeping)
 register_task("Docking", Docking)  # ROVs, in the rov_dock scene
@@ -60,6 +60,7 @@ __all__ = [
     "DockingConfig",
     "DisturbanceConfig",
     "EnvConfig",
+    "FixedEpisodes",
     "MarineEnv",
     "ObstacleAvoidance",
     "ObstacleAvoidanceConfig",

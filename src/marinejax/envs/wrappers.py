@@ -3,6 +3,7 @@
 Brax's AutoResetWrapper restores the cached first state of each env slot, so targets, trajectories,
 currents and randomized physics would never change between episodes. `FullResetWrapper` calls the
 env's reset with a fresh key instead; `wrap_for_training` is the `wrap_env_fn` to give `ppo.train`.
+`FixedEpisodes` marks an evaluation env whose every batched reset starts the same episodes.
 """
 
 from __future__ import annotations
@@ -62,6 +63,28 @@ class FullResetWrapper(Wrapper):
         )
 
 
+class FixedEpisodes(Wrapper):
+    """An env to give `ppo.train` as its `eval_env`: `wrap_for_training` makes its batched resets
+    ignore the keys they are given and start the same episodes every time, drawn from `seed`. Brax
+    draws new evaluation episodes at each training evaluation; on the same episodes the best of the
+    evaluations compares policies, not the episodes' luck."""
+
+    def __init__(self, env: Env, seed: int):
+        super().__init__(env)
+        self.episodes_seed = int(seed)
+
+
+class _SameResetKeys(Wrapper):
+    """Batched env whose reset replaces its (n, 2) keys by n keys drawn from a fixed seed."""
+
+    def __init__(self, env: Env, seed: int):
+        super().__init__(env)
+        self._key = jax.random.fold_in(jax.random.PRNGKey(seed), 0x6576616C)
+
+    def reset(self, rng: jax.Array) -> State:
+        return self.env.reset(jax.random.split(self._key, rng.shape[0]))
+
+
 def wrap_for_training(
     env: Env,
     episode_length: int = 1000,
@@ -70,7 +93,8 @@ def wrap_for_training(
     trace_cache: str | Path | None = None,
 ) -> Wrapper:
     """Same signature as `brax.envs.training.wrap`, with `FullResetWrapper` instead of AutoReset:
-    pass as `ppo.train(..., wrap_env_fn=wrap_for_training)`. Randomization is per episode, drawn by
+    pass as `ppo.train(..., wrap_env_fn=wrap_for_training)` (an env in `FixedEpisodes` gets the same
+    wrappers, its resets keyed by its seed). Randomization is per episode, drawn by
     the env's plant (`randomization.enabled`), so Brax's per-slot `randomization_fn` is refused.
 
     With `trace_cache` (a folder) the wrapped reset and step are kept there between processes
@@ -81,7 +105,9 @@ def wrap_for_training(
             "marinejax envs randomize their physics per episode: make the env with "
             "randomization={'enabled': True} instead of passing a Brax randomization_fn"
         )
-    env = VmapWrapper(env)
+    fixed = env.episodes_seed if isinstance(env, FixedEpisodes) else None
+    env = VmapWrapper(env.env if fixed is not None else env)
     env = EpisodeWrapper(env, episode_length, action_repeat)
     env = FullResetWrapper(env)
-    return env if trace_cache is None else TraceCache(env, trace_cache)
+    env = env if trace_cache is None else TraceCache(env, trace_cache)
+    return env if fixed is None else _SameResetKeys(env, fixed)

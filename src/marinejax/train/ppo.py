@@ -98,6 +98,10 @@ class Config:
     # the mirror image of the action, by construction (the network's output averaged with the
     # reflected output for the reflected observation). Both turning directions are learned as one.
     mirror_symmetric: bool = False
+    # The training evaluations fly the same `num_eval_envs` episodes every time (drawn from `seed`;
+    # Brax draws new ones each time), so that the best checkpoint is the best policy on those
+    # episodes rather than the one whose episodes were easiest. Training itself is unchanged.
+    fixed_eval_episodes: bool = False
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
@@ -287,6 +291,8 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
     """Brax PPO on `env`; `save_fn(step, params)` after every evaluation (step counted from this call's start)."""
     from brax.training.agents.ppo import train as ppo_train
 
+    from marinejax.envs.wrappers import FixedEpisodes
+
     # a resumed run continues its schedule where it stopped (Brax starts a new optimizer state)
     steps_done = config.num_timesteps - num_timesteps
     rate = brax_learning_rate(config, steps_done)
@@ -299,6 +305,7 @@ def run(env, config: Config, *, num_timesteps: int, seed: int, wrap_env_fn, prog
 
     ppo_train.train(
         environment=env,
+        eval_env=FixedEpisodes(env, config.seed) if config.fixed_eval_episodes else None,
         num_timesteps=num_timesteps,
         episode_length=env.config.episode_length,
         wrap_env_fn=wrap_env_fn,
