@@ -227,6 +227,7 @@ def test_fixed_eval_episodes_leave_training_unchanged_and_evaluate_the_same_epis
         proc = marinejax("train", "BlueROV2Heavy-StationKeeping", "--run-dir", str(tmp_path / name), "--no-video", *TINY, *extra)
         assert proc.returncode == 0, proc.stderr[-3000:]
         runs[name] = [json.loads(line) for line in (tmp_path / name / "metrics.jsonl").read_text().splitlines()]
+
     def training(records):  # the losses, KL, rate and policy statistics; not the timings
         return [{k: v for k, v in r.items() if k.startswith("training/") and k not in ("training/walltime", "training/sps")}
                 for r in records]
