@@ -238,9 +238,9 @@ def main(argv: list[str] | None = None, trace_cache: Path | None = None) -> int:
             row = run_seed(env_name, seed, out_dir / env_name / f"seed-{seed}", agent, env_overrides,
                            args.target_error, args.episodes, log=lambda m: print(m, flush=True), trace_cache=trace_cache,
                            algorithm=args.algo)
-            heading = "" if row["heading_error_mean_deg"] is None else f", heading {row['heading_error_mean_deg']:.2f}°"
-            heading += "" if row["speed_error_mean"] is None else f", speed {row['speed_error_mean']:.3f} m/s"
-            print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m{heading}, success {100 * row['success_rate']:.0f} %, "
+            others = "" if row["heading_error_mean_deg"] is None else f", heading {row['heading_error_mean_deg']:.2f}°"
+            others += "" if row["speed_error_mean"] is None else f", speed {row['speed_error_mean']:.3f} m/s"
+            print(f"{env_name} seed {seed}: error {row['error_mean_m']:.4f} m{others}, success {100 * row['success_rate']:.0f} %, "
                   f"training {row['wall_time_s']:.0f} s; latest checkpoint {row['latest_error_mean_m']:.4f} m "
                   f"({row['latest_over_best']:.2f}× the best)", flush=True)
             rows.append(row)
