@@ -238,3 +238,19 @@ def test_below_one_metre_per_second_the_stern_planes_cannot_hold_a_few_newtons_o
     remus = mj.load_vehicle("remus100")
     assert _best_climb_rate(remus, 0.75, 2.0) < -0.01
     assert _best_climb_rate(remus, 1.0, 2.0) > 0.05
+
+
+def test_training_evaluations_get_the_heading_and_speed_errors_over_the_window(env, run):
+    """Each target's `window_<error>` sums over an episode to that error's mean over the evaluation
+    window, as `marinejax eval` computes it, so a checkpoint can be chosen on all three targets."""
+    _, (_, metrics, _, time) = run
+    assert dict(env.targets) == {"position_error": 0.1, "heading_error_deg": 2.0, "speed_error": 0.05}
+    assert set(env.targets) <= set(env.error_names)
+    mask = np.asarray(env.error_window(np.asarray(time[0], np.float64)))
+    assert 0 < mask.sum() < mask.size
+    for name in ("heading_error_deg", "speed_error"):
+        error = np.asarray(metrics[name], np.float64)
+        summed = np.asarray(metrics[f"window_{name}"], np.float64).sum(axis=1)
+        np.testing.assert_allclose(summed, error[:, mask].mean(axis=1), rtol=1e-4)
+        assert summed.min() > 0
+    assert np.asarray(metrics["window_error"]).max() < env.config.max_distance  # no episode ended early

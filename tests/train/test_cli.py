@@ -161,6 +161,9 @@ def test_resume_continues_from_the_newest_checkpoint(run_dir, tmp_path):
         (["train", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--algo-opts", "unroll_length=5"], "unknown config key"),
         (["train", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--algo-opts", "min_replay_size=5000000"], "'min_replay_size'"),
         (["bench", "training", "BlueROV2Heavy-StationKeeping", "--algo", "sac", "--ppo", "seed=1"], "--ppo applies to --algo ppo"),
+        (["train", "Remus100-Autopilot", "--ppo", "best_on=latest"], "'best_on' must be one of ['window_error', 'targets'], got 'latest'"),
+        (["train", "BlueROV2Heavy-StationKeeping", "--ppo", "best_on=targets"],
+         "'best_on' is 'targets' but BlueROV2Heavy-StationKeeping has no targets"),
     ],
 )
 def test_user_mistakes_exit_2_with_one_line_and_no_traceback(args, message):
@@ -251,6 +254,20 @@ def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_p
     assert summary["status"] == "target reached" and summary["time_to_target"]["step"] == first["step"]
     assert records[-1]["step"] == first["step"] < 1600  # stopped before the full budget
     assert "target 100.0 m met at" in proc.stdout
+
+
+def test_a_checkpoint_chosen_on_targets_is_scored_by_its_error_furthest_over_its_target():
+    from marinejax.train.curves import checkpoint_score
+
+    autopilot = {"position_error": 0.1, "heading_error_deg": 2.0, "speed_error": 0.05}
+    depth_only = {"eval/episode_window_error": 0.02, "eval/episode_window_heading_error_deg": 3.4,
+                  "eval/episode_window_speed_error": 0.22}  # fine depth, speed traded for it
+    all_three = {"eval/episode_window_error": 0.08, "eval/episode_window_heading_error_deg": 1.0,
+                 "eval/episode_window_speed_error": 0.01}
+    assert checkpoint_score(depth_only) == 0.02 < checkpoint_score(all_three) == 0.08  # the window error alone
+    assert checkpoint_score(depth_only, autopilot) == pytest.approx(4.4)  # the speed: 0.22 / 0.05
+    assert checkpoint_score(all_three, autopilot) == pytest.approx(0.8)  # the depth: 0.08 / 0.1
+    assert checkpoint_score({"step": 0}, autopilot) is None and checkpoint_score({"step": 0}) is None
 
 
 def test_latest_over_best_where_the_best_policy_makes_no_error():

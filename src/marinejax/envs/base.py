@@ -216,6 +216,12 @@ class MarineEnv(Env):
     # where set, the name of an error (1 or 0) whose value at an episode's last step is its success,
     # instead of the thresholds above (a task with its own criterion, e.g. `docked`)
     success_flag: str | None = None
+    # The task's accuracy targets, error name (`errors`) → the largest mean over the window it may
+    # have (in the error's unit; position_error: the window error, m). For each other error named
+    # here the metrics also have `window_<name>`, weighted as `window_error` is, so that training
+    # evaluations report its mean over the window and a checkpoint can be chosen on every target
+    # (`best_on="targets"` in the algorithm's settings). Empty: the window error alone.
+    targets: types.MappingProxyType = types.MappingProxyType({})
 
     def __init__(self, vehicle: str | Vehicle, config: EnvConfig):
         self.config = config
@@ -307,6 +313,7 @@ class MarineEnv(Env):
             info["observation_buffer"] = jnp.broadcast_to(policy_obs, (size,) + policy_obs.shape)
         metrics = self._metrics(self.reward_terms(vs, info, action), self.errors(vs, info), jnp.zeros(()), jnp.zeros(()))
         metrics["window_error"] = jnp.zeros(())
+        metrics.update({f"window_{name}": jnp.zeros(()) for name in self._window_targets})
         return State(pipeline_state=ps, obs=obs, reward=jnp.zeros(()), done=jnp.zeros(()), metrics=metrics, info=info)
 
     def step(self, state: State, action: jax.Array) -> State:
@@ -382,7 +389,13 @@ class MarineEnv(Env):
         metrics = self._metrics(terms, errors, nonfinite, out.astype(jnp.float32))
         in_window = self.error_window(time).astype(jnp.float32) / self._window_steps
         metrics["window_error"] = jnp.where(done > 0, cfg.max_distance, errors["position_error"] * in_window)
+        metrics.update({f"window_{name}": errors[name] * in_window for name in self._window_targets})
         return done, metrics
+
+    @property
+    def _window_targets(self) -> tuple[str, ...]:
+        """The errors of `targets` other than the position error (the window error's)."""
+        return tuple(name for name in self.targets if name != "position_error")
 
     # --- errors, observation and reward pieces shared by the tasks -------------------------
     def errors(self, vs: VehicleState, info: dict) -> dict[str, jnp.ndarray]:

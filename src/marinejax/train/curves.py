@@ -1,11 +1,16 @@
-"""Learning-curve PNG of a run directory (from metrics.jsonl)."""
+"""Evaluation records of a run (metrics.jsonl): their errors, the score a best checkpoint is chosen
+on, and the learning-curve PNG."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Mapping
 
 WINDOW_ERROR = "eval/episode_window_error"  # mean over evaluation episodes of the task's window error, m
+# What the best checkpoint is chosen on (the algorithm's `best_on`): the lowest window error, or the
+# lowest of each target's error over its target, the largest ratio counting (`MarineEnv.targets`)
+BEST_ON = ("window_error", "targets")
 
 
 def evaluation_error(record: dict) -> float | None:
@@ -16,6 +21,18 @@ def evaluation_error(record: dict) -> float | None:
     if "eval/episode_position_error" in record:
         return record["eval/episode_position_error"] / max(record.get("eval/avg_episode_length", 1.0), 1.0)
     return None
+
+
+def checkpoint_score(record: dict, targets: Mapping[str, float] | None = None) -> float | None:
+    """What a best checkpoint minimises, from an evaluation record: the window error (m), or with
+    `targets` (error name → target, `MarineEnv.targets`) the largest of the errors' means over the
+    window each divided by its target (≤ 1: every target met). None: the record has no evaluation."""
+    if not targets:
+        return record.get(WINDOW_ERROR)
+    keys = {name: WINDOW_ERROR if name == "position_error" else f"eval/episode_window_{name}" for name in targets}
+    if any(key not in record for key in keys.values()):
+        return None
+    return max(record[keys[name]] / target for name, target in targets.items())
 
 
 def plot_learning_curve(run_dir: Path) -> Path:

@@ -20,6 +20,7 @@ from typing import Any, Callable, Mapping
 
 from marinejax.errors import UserError
 from marinejax.train.brax_agents import deterministic_policy, save_checkpoint
+from marinejax.train.curves import BEST_ON
 
 NETWORK_CONFIG = "ppo_network_config.json"
 # Brax's learning-rate schedules: "none" (constant `learning_rate`) or "adaptive_kl" (after every
@@ -104,6 +105,10 @@ class Config:
     # run and seed: their key is a constant of the compiled evaluation, so one per seed would compile
     # it anew for each seed (about 20 s here).
     fixed_eval_episodes: bool = False
+    # The best checkpoint (best.json): the lowest window error ("window_error"), or ("targets") the one
+    # nearest to meeting every one of the task's targets (`MarineEnv.targets`: the autopilot's depth,
+    # heading and speed), so that it cannot be one that trades the speed for the depth.
+    best_on: str = "window_error"
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "unroll_length", "batch_size", "num_minibatches",
@@ -118,6 +123,8 @@ class Config:
         for name in ("learning_rate", "discounting", "gae_lambda", "clipping_epsilon", "reward_scaling"):
             if not getattr(self, name) > 0:
                 raise UserError(f"ppo '{name}' must be > 0, got {getattr(self, name)}")
+        if self.best_on not in BEST_ON:
+            raise UserError(f"ppo 'best_on' must be one of {list(BEST_ON)}, got {self.best_on!r}")
         if self.learning_rate_schedule not in LEARNING_RATE_SCHEDULES:
             raise UserError(f"ppo 'learning_rate_schedule' must be one of {list(LEARNING_RATE_SCHEDULES)}, "
                             f"got {self.learning_rate_schedule!r}")

@@ -32,7 +32,7 @@ from marinejax.envs.base import MarineEnv
 from marinejax.errors import MissingFileError, UserError
 from marinejax.machine import machine_info
 from marinejax.train.checkpoints import BEST, CHECKPOINTS, latest_checkpoint
-from marinejax.train.curves import WINDOW_ERROR
+from marinejax.train.curves import WINDOW_ERROR, checkpoint_score
 from marinejax.train import wandb_log
 from marinejax.train.hyperparams import PPOConfig, SACConfig, TrainConfig, build_env
 
@@ -140,7 +140,8 @@ def train(
     usable and the summary says 'interrupted'.
 
     After every evaluation the checkpoint with the lowest `eval/episode_window_error` (m) is named in
-    best.json. With `target_error` (m), the summary records when that error first met the target
+    best.json, or with the algorithm's `best_on="targets"` the one with the lowest
+    `curves.checkpoint_score` over the task's targets (best.json's 'score'). With `target_error` (m), the summary records when that error first met the target
     (env steps and wall seconds), and training stops there if `stop_at_target`.
 
     `devices` local devices share the env batch (Brax's pmap; gradients are averaged over them);
@@ -166,6 +167,10 @@ def train(
     agent, algorithm = config.agent, config.module
     devices = check_devices(devices, agent)
     env = build_env(config)
+    if agent.best_on == "targets" and not env.targets:
+        raise UserError(f"{config.algorithm} 'best_on' is 'targets' but {config.env} has no targets (MarineEnv.targets); "
+                        "use 'window_error'")
+    targets = dict(env.targets) if agent.best_on == "targets" else None
     steps_done, elapsed_before, restore = 0, 0.0, None
     if resume:
         ckpt = latest_checkpoint(run_dir)
@@ -213,9 +218,10 @@ def train(
         if wandb_run is not None:
             wandb_log.log(wandb_run, record)
         nonlocal best
-        err = record.get(WINDOW_ERROR)
-        if err is not None and record["step"] > 0 and (best is None or err < best["window_error"]):
-            best = {"step": record["step"], "window_error": err, "elapsed": record["elapsed"]}
+        err, score = record.get(WINDOW_ERROR), checkpoint_score(record, targets)
+        if score is not None and record["step"] > 0 and (best is None or score < best.get("score", best["window_error"])):
+            best = {"step": record["step"], "window_error": err, "elapsed": record["elapsed"],
+                    **({"score": score} if targets else {})}
             best_path.write_text(json.dumps(best, indent=2))
         if on_eval:
             on_eval(record)

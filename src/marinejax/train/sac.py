@@ -17,6 +17,7 @@ from typing import Any, Callable, Mapping
 
 from marinejax.errors import UserError
 from marinejax.train.brax_agents import deterministic_policy, save_checkpoint
+from marinejax.train.curves import BEST_ON
 
 NETWORK_CONFIG = "sac_network_config.json"
 
@@ -42,6 +43,7 @@ class Config:
     num_eval_envs: int = 64
     seed: int = 0
     cpu_devices: int = 1  # on a CPU-only host, the JAX devices its cores are split into (as PPO's)
+    best_on: str = "window_error"  # what the best checkpoint is chosen on (as PPO's)
 
     def __post_init__(self):
         for name in ("num_timesteps", "num_envs", "batch_size", "grad_updates_per_step", "max_replay_size", "num_evals",
@@ -51,6 +53,8 @@ class Config:
         for name in ("learning_rate", "discounting", "reward_scaling", "tau"):
             if not getattr(self, name) > 0:
                 raise UserError(f"sac '{name}' must be > 0, got {getattr(self, name)}")
+        if self.best_on not in BEST_ON:
+            raise UserError(f"sac 'best_on' must be one of {list(BEST_ON)}, got {self.best_on!r}")
         if not (self.discounting < 1 and self.tau <= 1):
             raise UserError(f"sac 'discounting' must be < 1 and 'tau' <= 1, got {self.discounting}, {self.tau}")
         if not 0 <= self.min_replay_size < min(self.num_timesteps, self.max_replay_size):
