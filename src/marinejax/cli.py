@@ -385,8 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")
     ev.add_argument("--controller", choices=["pid", "lqr", "autopilot", "los", "avoid"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
-                    help="for a run directory: the checkpoint with the lowest evaluation error during training "
-                         "(default) or the newest")
+                    help="for a run directory: the checkpoint with the lowest evaluation error during training, or with "
+                         "best_on=targets the nearest to meeting every target (default), or the newest")
     ev.add_argument("--episodes", type=int, default=64, help="number of episodes (default 64)")
     ev.add_argument("--seed", type=int, default=12345, help="seed of the evaluation episodes")
     ev.add_argument("--env", action="append", metavar="KEY=VALUE", help="override an env setting for the evaluation")

@@ -68,6 +68,13 @@ def test_the_vehicle_starts_at_the_commanded_altitude_and_measures_it_with_the_a
     np.testing.assert_allclose(np.asarray(states.metrics["position_error"]), np.abs(np.asarray(task.altitude) - altitude), atol=1e-4)
 
 
+def test_its_targets_are_the_altitude_and_the_autopilots_heading_and_speed(env, resets):
+    # what `best_on="targets"` chooses a checkpoint on; each other error logged over the window
+    assert dict(env.targets) == {"position_error": 0.2, "heading_error_deg": 2.0, "speed_error": 0.05}
+    assert set(env.targets) <= set(env.error_names)
+    assert {"window_heading_error_deg", "window_speed_error"} <= set(resets.metrics)
+
+
 def test_without_bottom_lock_the_last_valid_altitude_is_held(env):
     """An altimeter that loses every update after the first: the observed altitude error stays the
     start's while the vehicle climbs away."""

@@ -241,6 +241,23 @@ def test_fixed_eval_episodes_leave_training_unchanged_and_evaluate_the_same_epis
 
 
 @pytest.mark.slow
+def test_a_best_checkpoint_on_targets_is_the_one_whose_worst_error_over_its_target_is_smallest(tmp_path):
+    # the autopilot in 2 s episodes of two 1 s set-points (the window: the last 0.5 s of each)
+    run = tmp_path / "ap"
+    proc = marinejax("train", "Remus100-Autopilot", "--run-dir", str(run), "--no-video", *TINY[:-2], "--env", "episode_length=20",
+                     "--env", "segment_duration=1", "--env", "settled=0.5", "--ppo", "best_on=targets")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
+    targets = {"eval/episode_window_error": 0.1, "eval/episode_window_heading_error_deg": 2.0, "eval/episode_window_speed_error": 0.05}
+    scores = {r["step"]: max(r[key] / target for key, target in targets.items()) for r in records if r["step"] > 0}
+    best = json.loads((run / "best.json").read_text())
+    assert len(scores) == 2 and best["step"] == min(scores, key=scores.get) and best["score"] == pytest.approx(min(scores.values()))
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["evaluation"]["checkpoint_kind"] == "best (nearest to meeting every target during training)"
+    assert summary["evaluation"]["checkpoint"].endswith(f"{best['step']:012d}")
+
+
+@pytest.mark.slow
 def test_target_error_stops_training_at_the_first_evaluation_that_meets_it(tmp_path):
     before = traced()
     # 2 evaluation envs: shapes no other run traced, which --no-compile-cache must not keep either

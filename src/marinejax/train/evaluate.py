@@ -24,7 +24,8 @@ def evaluate_run(path: Path, out_dir: Path | None = None, episodes: int = 64, se
     config, env, policy, ckpt = load_policy(path, env_overrides, which)
     run_dir = ckpt.parent.parent  # checkpoints live in <run>/checkpoints/<step>
     if ckpt == best_checkpoint(run_dir):
-        kind = "best (lowest evaluation error during training)"
+        kind = ("best (nearest to meeting every target during training)" if config.agent.best_on == "targets"
+                else "best (lowest evaluation error during training)")
     elif ckpt == latest_checkpoint(run_dir):
         kind = "newest"
     else:

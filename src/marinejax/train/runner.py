@@ -5,7 +5,7 @@ Run directory layout:
   config.json        the resolved env config, the algorithm and its settings, versions and machine
   metrics.jsonl      one line per evaluation: env steps, wall time, evaluation metrics
   checkpoints/<step> the algorithm's Brax checkpoints (params + network config)
-  best.json          the evaluated checkpoint with the lowest evaluation error so far
+  best.json          the best evaluated checkpoint so far (lowest evaluation error, or per `best_on`)
   curve.png          learning curve (return and position error vs env steps and wall time)
   summary.json       written when training ends (or is interrupted)
   tensorboard/       every evaluation's metrics as TensorBoard scalars (`tensorboard --logdir runs`)
@@ -141,8 +141,9 @@ def train(
 
     After every evaluation the checkpoint with the lowest `eval/episode_window_error` (m) is named in
     best.json, or with the algorithm's `best_on="targets"` the one with the lowest
-    `curves.checkpoint_score` over the task's targets (best.json's 'score'). With `target_error` (m), the summary records when that error first met the target
-    (env steps and wall seconds), and training stops there if `stop_at_target`.
+    `curves.checkpoint_score` over the task's targets (best.json's 'score'). With `target_error` (m),
+    the summary records when the window error first met the target (env steps and wall seconds), and
+    training stops there if `stop_at_target`.
 
     `devices` local devices share the env batch (Brax's pmap; gradients are averaged over them);
     None: `check_devices`'s default. `num_envs` must be a multiple of it.
