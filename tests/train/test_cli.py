@@ -244,8 +244,8 @@ def test_fixed_eval_episodes_leave_training_unchanged_and_evaluate_the_same_epis
 def test_a_best_checkpoint_on_targets_is_the_one_whose_worst_error_over_its_target_is_smallest(tmp_path):
     # the autopilot in 2 s episodes of two 1 s set-points (the window: the last 0.5 s of each)
     run = tmp_path / "ap"
-    proc = marinejax("train", "Remus100-Autopilot", "--run-dir", str(run), "--no-video", *TINY[:-2], "--env", "episode_length=20",
-                     "--env", "segment_duration=1", "--env", "settled=0.5", "--ppo", "best_on=targets")
+    proc = marinejax("train", "Remus100-Autopilot", "--run-dir", str(run), "--no-video", *TINY, "--env", "segment_duration=1",
+                     "--env", "settled=0.5", "--ppo", "best_on=targets")
     assert proc.returncode == 0, proc.stderr[-3000:]
     records = [json.loads(line) for line in (run / "metrics.jsonl").read_text().splitlines()]
     targets = {"eval/episode_window_error": 0.1, "eval/episode_window_heading_error_deg": 2.0, "eval/episode_window_speed_error": 0.05}

@@ -40,7 +40,8 @@ def resolve_checkpoint(path: Path | str, which: str = "best") -> tuple[Path, Pat
     name of an env with a shipped policy (e.g. "BlueROV2Heavy-StationKeeping").
 
     For a run directory, `which` picks "best" (best.json's: the lowest evaluation error during
-    training, or with `best_on="targets"` the nearest to every target; the newest if the run has none) or "latest" (the newest checkpoint)."""
+    training, or with `best_on="targets"` the nearest to every target; the newest if the run has
+    none) or "latest" (the newest checkpoint)."""
     if which not in CHECKPOINT_CHOICES:
         raise UserError(f"unknown checkpoint choice {which!r}; valid: {list(CHECKPOINT_CHOICES)}")
 
