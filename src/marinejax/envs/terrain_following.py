@@ -192,8 +192,8 @@ class TerrainFollowing(Autopilot):
     error_window_description = "after the first `settle` s of each episode"
     error_units = types.MappingProxyType({**MarineEnv.error_units, "collision": "", "clearance": "m", "cross_track_error": "m"})
     success_threshold_m = 0.2  # m of mean altitude error (issue #24's target); a contact ends the episode, a failure
-    # the altitude's 0.2 m (m, issue #24's) with the autopilot's heading (°) and speed (m/s) targets
-    targets = types.MappingProxyType({"position_error": 0.2, "heading_error_deg": 2.0, "speed_error": 0.05})
+    # the altitude's 0.2 m (issue #24's) with the autopilot's heading (°) and speed (m/s) targets
+    targets = types.MappingProxyType({**Autopilot.targets, "position_error": 0.2})
 
     def __init__(self, vehicle, config: TerrainFollowingConfig):
         super().__init__(vehicle, config)

@@ -164,9 +164,10 @@ _TUNED_ENVS["Remus100-CircleFollowingDisturbed"] = _FROM_CIRCLE
 # its heading; sharper ones (0.2 rad, 0.25 m/s) bring every seed's latest checkpoint within all three
 # targets, and training evaluations on fixed episodes make the best checkpoint one that is too: seeds
 # 0-4 within 0.087 m, 1.7° and 0.047 m/s in 137-200 s (docs/results.md).
-_AUTOPILOT_DISTURBED = dataclasses.replace(_AUTOPILOT_1E4, num_timesteps=6_000_000, init_from="Remus100-Autopilot")
-_TUNED_ENVS["Remus100-AutopilotDisturbed"] = (dataclasses.replace(_AUTOPILOT_DISTURBED, fixed_eval_episodes=True),
-                                              {"reward.heading_precision_scale": 0.2, "reward.speed_scale": 0.25})
+_TUNED_ENVS["Remus100-AutopilotDisturbed"] = (
+    dataclasses.replace(_AUTOPILOT_1E4, num_timesteps=6_000_000, init_from="Remus100-Autopilot", fixed_eval_episodes=True),
+    {"reward.heading_precision_scale": 0.2, "reward.speed_scale": 0.25},
+)
 # Torpedo docking (the same task name as the ROVs' docking, another class): a straight path ending in
 # the funnel. From scratch with the path recipe four seeds of five docked in 77-94 % of the episodes
 # and one never, in 376-598 s. Its observation is path following's plus the latch point (`dock`): the
@@ -187,8 +188,7 @@ _TUNED_ENVS["Remus100-DockingDisturbed"] = (dataclasses.replace(_DOCK, num_times
 # autopilot policy) within 0.065 m, 1.6° and 0.043 m/s in 158-249 s (docs/results.md).
 _FOUR_FIN = {"Autopilot": (dataclasses.replace(_AUTOPILOT_1E4, num_timesteps=2_000_000, num_evals=10, init_from="Remus100-Autopilot"), {}),
              "CircleFollowing": (dataclasses.replace(_CIRCLE, num_timesteps=2_000_000, init_from="Remus100-CircleFollowing"), {})}
-_FOUR_FIN["AutopilotDisturbed"] = _TUNED_ENVS["Remus100-AutopilotDisturbed"]
-_FOUR_FIN["CircleFollowingDisturbed"] = _TUNED_ENVS["Remus100-CircleFollowingDisturbed"]
+_FOUR_FIN.update({task: _TUNED_ENVS[f"Remus100-{task}"] for task in ("AutopilotDisturbed", "CircleFollowingDisturbed")})
 _FOUR_FIN.update({f"{task}{d}": _TUNED_ENVS[f"Remus100-{task}{d}"] for task in ("HelixFollowing", "LemniscateFollowing", "WaypointFollowing", "Docking")
                   for d in ("", "Disturbed")})
 _TUNED_ENVS.update({f"Remus100FourFin-{task}": settings for task, settings in _FOUR_FIN.items()})
