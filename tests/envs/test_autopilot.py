@@ -167,6 +167,31 @@ def test_the_progress_term_pays_the_rate_the_depth_error_shrinks(env):
     assert env.config.reward.progress == 1.0
 
 
+def test_the_dive_term_charges_a_flight_path_shallower_than_the_classical_depth_loops(env):
+    """Weighted, the dive term is −(sin θ_ref − the sine of the flight-path angle towards the
+    set-point), θ_ref = min(0.1 rad/m × |e|, 0.5 rad) (the classical autopilot's depth loop), at any
+    speed, and 0 on a path as steep or steeper; unweighted (the default) it is not a term at all."""
+    state = env.reset(jax.random.PRNGKey(0))
+    assert "dive" not in env.reward_terms(env.plant.vehicle_state(state.pipeline_state), state.info, jnp.zeros(env.action_size))
+    dive = mj.make("Remus100-Autopilot", **{"reward.dive": 1.0})
+    state = dive.reset(jax.random.PRNGKey(0))
+    task, info = state.info["task"], state.info
+    vs = dive.plant.vehicle_state(state.pipeline_state)
+    for pitch in (np.radians(10.0), -np.radians(10.0)):
+        q = quat_from_euler(0.0, pitch, 1.0)
+        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:  # the nose 10° up
+            break
+    climb = np.sin(np.radians(10.0))  # the flight-path angle's sine, nose 10° up
+    # (set-point above by m, speed m/s): 2 m asks sin 0.2, 8 m the 0.5 rad limit, 1 m less than 10°
+    cases = [((2.0, 1.2), np.sin(0.2) - climb), ((8.0, 1.2), np.sin(0.5) - climb), ((8.0, 0.6), np.sin(0.5) - climb),
+             ((1.0, 1.2), 0.0), ((-2.0, 1.2), np.sin(0.2) + climb)]
+    for (offset, speed), shortfall in cases:
+        here = vs.replace(position=jnp.array([0.0, 0.0, float(task.depth[0]) - offset]), quaternion=q,
+                          velocity=jnp.array([speed, 0.0, 0.0]), angular_velocity=jnp.zeros(3))
+        terms = dive.reward_terms(here, info, jnp.zeros(dive.action_size))
+        assert float(terms["dive"]) == pytest.approx(-shortfall, abs=1e-5), (offset, speed)
+
+
 def test_in_a_current_the_set_points_are_those_the_nominal_task_asks_at_the_slowest_speed_through_the_water():
     """Disturbed: the speed set-points keep the speed through the water within speed_range whatever
     the heading (U ± c), the depth and heading changes are the nominal's at U − c with the weakest

@@ -102,7 +102,8 @@ class RewardConfig:
     same): −1 on the step the vehicle hits an obstacle; proximity (the same): −(1 − gap / range) within
     the task's range of an obstacle, 0 beyond;
     docked (docking): the torpedo's 1 on the step the latch closes, the ROV's the time docked without a
-    break over the time it must hold, at most 1.
+    break over the time it must hold, at most 1; dive (the autopilot): −(the climb rate towards the
+    depth set-point short of a reference), m/s (`envs/autopilot.py`).
     """
 
     position: float = 2.0
@@ -124,6 +125,7 @@ class RewardConfig:
     collision: float = 0.0
     proximity: float = 0.0
     docked: float = 0.0
+    dive: float = 0.0
 
 
 OBSERVATION_MODES = ("state", "sensors")
