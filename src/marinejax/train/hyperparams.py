@@ -104,8 +104,8 @@ _TUNED.update({"HelixFollowing": _CURVED, "LemniscateFollowing": _CURVED})
 # 175-214 s, but a checkpoint chosen on the depth alone can trade the speed and heading for it (3.4°
 # and 0.22 m/s off): chosen on all three of the task's targets (`best_on="targets"`) over fixed
 # training-evaluation episodes, seeds 0-4 within 0.090 m, 1.3° and 0.042 m/s (held-out seed 5: 0.104
-# m of depth, its large dives closed slowly; the dive term against them moved the slow seeds to others,
-# docs/results.md).
+# m of depth, its large dives closed slowly; `reward.dive` settled them but cost another seed its
+# speed or heading, docs/results.md).
 _AUTOPILOT_1E4 = dataclasses.replace(_STATION, num_timesteps=20_000_000, discounting=0.99)
 _TUNED["Autopilot"] = (dataclasses.replace(_AUTOPILOT_1E4, entropy_cost=1e-2, num_timesteps=12_000_000, cpu_devices=2,
                                            fixed_eval_episodes=True, best_on="targets", **_DECAYING_RATE), {})
