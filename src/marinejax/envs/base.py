@@ -102,8 +102,8 @@ class RewardConfig:
     same): −1 on the step the vehicle hits an obstacle; proximity (the same): −(1 − gap / range) within
     the task's range of an obstacle, 0 beyond;
     docked (docking): the torpedo's 1 on the step the latch closes, the ROV's the time docked without a
-    break over the time it must hold, at most 1; dive (the autopilot): −(the climb rate towards the
-    depth set-point short of a reference), m/s (`envs/autopilot.py`).
+    break over the time it must hold, at most 1; dive (the autopilot): −(the sine of the flight-path
+    angle towards the depth set-point short of a reference's), where positive (`envs/autopilot.py`).
     """
 
     position: float = 2.0
