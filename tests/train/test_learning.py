@@ -40,7 +40,7 @@ def test_tuned_station_keeping_recipe_lands_and_converges_on_a_held_out_seed(see
     one a success (position and heading), and the latest checkpoint is as good on the same episodes:
     within 1.5× of the best and within the same bounds (measured: seed 5 0.59 mm and 0.01°, latest
     0.65 mm, 1.09×; seed 6 2.5 mm and 0.01°, latest 2.8 mm, 1.12×; on seeds 0-4 the latest is
-    1.00-1.96× the best). About 3 minutes a seed of CI's time; seeds 0-4 are docs/results.md's
+    1.00-1.96× the best). 3-5 minutes a seed of CI's time (two run side by side); seeds 0-4 are docs/results.md's
     benchmark."""
     from marinejax.benchmarks.training import run_seed
 
