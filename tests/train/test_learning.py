@@ -32,7 +32,7 @@ def test_shipped_policy_reproduces_its_recorded_evaluation(env_name, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [5, 6])
+@pytest.mark.parametrize("seed", [5, pytest.param(6, marks=pytest.mark.exhaustive)])
 def test_tuned_station_keeping_recipe_lands_and_converges_on_a_held_out_seed(seed, tmp_path):
     """`marinejax bench training BlueROV2Heavy-StationKeeping`'s run of one seed, from scratch with
     the whole 12 M-step budget, on seeds 5 and 6 (outside docs/results.md's 0-4): the best checkpoint
@@ -40,8 +40,9 @@ def test_tuned_station_keeping_recipe_lands_and_converges_on_a_held_out_seed(see
     one a success (position and heading), and the latest checkpoint is as good on the same episodes:
     within 1.5× of the best and within the same bounds (measured: seed 5 0.59 mm and 0.01°, latest
     0.65 mm, 1.09×; seed 6 2.5 mm and 0.01°, latest 2.8 mm, 1.12×; on seeds 0-4 the latest is
-    1.00-1.96× the best). 3-5 minutes a seed of CI's time (two run side by side); seeds 0-4 are docs/results.md's
-    benchmark."""
+    1.00-1.96× the best). CI trains seed 5 (about 3 minutes); seed 6 runs with `pytest -m exhaustive`,
+    as CI's 45 minutes do not hold both (measured: 45 min 48 s with both). Seeds 0-4 are
+    docs/results.md's benchmark."""
     from marinejax.benchmarks.training import run_seed
 
     row = run_seed("BlueROV2Heavy-StationKeeping", seed, tmp_path / "run", {}, {}, 0.02, 64, log=lambda _: None)
