@@ -149,16 +149,23 @@ def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
     assert turn[slow].max() < 0.37 * c.heading_step and turn[fast].max() > 0.9 * c.heading_step
 
 
+def _nose_up(degrees):
+    """The attitude (quaternion) with the nose `degrees` up, heading 1 rad: whichever sign of the
+    Euler pitch raises the body x axis in the world."""
+    for pitch in (np.radians(degrees), -np.radians(degrees)):
+        q = quat_from_euler(0.0, pitch, 1.0)
+        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:
+            return q
+    raise AssertionError("neither sign of the pitch raises the nose")
+
+
 def test_the_progress_term_pays_the_rate_the_depth_error_shrinks(env):
     """Nose 30° up at 1.2 m/s: the vehicle climbs at 0.6 m/s, which earns +0.6 under a set-point above
     it, −0.6 under one below (heading 1 rad: the climb is read in the world frame)."""
     state = env.reset(jax.random.PRNGKey(0))
     task, info = state.info["task"], state.info
     vs = env.plant.vehicle_state(state.pipeline_state)
-    for pitch in (np.radians(30.0), -np.radians(30.0)):
-        q = quat_from_euler(0.0, pitch, 1.0)
-        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:  # the nose up
-            break
+    q = _nose_up(30.0)
     for offset, expected in ((2.0, 0.6), (-2.0, -0.6)):
         here = vs.replace(position=jnp.array([0.0, 0.0, float(task.depth[0]) - offset]), quaternion=q,
                           velocity=jnp.array([1.2, 0.0, 0.0]), angular_velocity=jnp.zeros(3))
@@ -177,10 +184,7 @@ def test_the_dive_term_charges_a_flight_path_shallower_than_the_classical_depth_
     state = dive.reset(jax.random.PRNGKey(0))
     task, info = state.info["task"], state.info
     vs = dive.plant.vehicle_state(state.pipeline_state)
-    for pitch in (np.radians(10.0), -np.radians(10.0)):
-        q = quat_from_euler(0.0, pitch, 1.0)
-        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:  # the nose 10° up
-            break
+    q = _nose_up(10.0)
     climb = np.sin(np.radians(10.0))  # the flight-path angle's sine, nose 10° up
     # (set-point above by m, speed m/s): 2 m asks sin 0.2, 8 m the 0.5 rad limit, 1 m less than 10°
     cases = [((2.0, 1.2), np.sin(0.2) - climb), ((8.0, 1.2), np.sin(0.5) - climb), ((8.0, 0.6), np.sin(0.5) - climb),
