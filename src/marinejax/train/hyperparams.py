@@ -200,7 +200,7 @@ _TUNED_ENVS.update({f"Remus100FourFin-{task}": settings for task, settings in _F
 # nominal and disturbed and BlueROV2 nominal; the BlueROV2 also with the smoothness and
 # angular-velocity weights of its disturbed station keeping, against rocking in place (the disturbed
 # BlueROV2: 8-59 % on the tries, rocking at the landing point faster than the docked 0.1 m/s,
-# pitched by the disturbance torque; docs/results.md).
+# pitched by the disturbance; docs/results.md).
 _BLUEROV2_DOCK = {"reward.smoothness": 0.1, "reward.angular_velocity": 0.1}
 
 
