@@ -150,13 +150,11 @@ def test_slow_segments_ask_only_what_the_vehicle_can_reach(env):
 
 
 def _nose_up(degrees):
-    """The attitude (quaternion) with the nose `degrees` up, heading 1 rad: whichever sign of the
-    Euler pitch raises the body x axis in the world."""
-    for pitch in (np.radians(degrees), -np.radians(degrees)):
-        q = quat_from_euler(0.0, pitch, 1.0)
-        if float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0:
-            return q
-    raise AssertionError("neither sign of the pitch raises the nose")
+    """The attitude (quaternion) with the nose `degrees` up, heading 1 rad (FLU, z up: nose up is a
+    negative Euler pitch, checked here on the body x axis)."""
+    q = quat_from_euler(0.0, -np.radians(degrees), 1.0)
+    assert float((quat_to_mat(q) @ jnp.array([1.0, 0.0, 0.0]))[2]) > 0, "a negative pitch should raise the nose"
+    return q
 
 
 def test_the_progress_term_pays_the_rate_the_depth_error_shrinks(env):
