@@ -4,6 +4,8 @@ on the task's observation holding the altitude."""
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 import marinejax as mj
 from marinejax.controllers import pid_controller
 from marinejax.envs import RovTerrainFollowing, TerrainFollowing
+from marinejax.envs.base import heading_error
 from marinejax.envs.terrain_following import seabed_z
 from marinejax.errors import UserError
 from marinejax.statistics import rollout_controller, summarize
@@ -65,6 +68,19 @@ def test_the_vertical_error_observed_is_the_measured_altitude_error():
     assert float(state.obs[fields["position_error"]][2]) == pytest.approx(float(task.altitude) - true, abs=2e-3)
     assert float(state.metrics["position_error"]) == pytest.approx(abs(float(task.altitude) - true), abs=1e-5)
     np.testing.assert_allclose(state.obs[fields["reference_velocity"]], [float(task.speed), 0.0, 0.0], atol=2e-3)
+
+
+def test_the_sharp_heading_term_only_where_weighted():
+    """`reward.heading_precision` pays exp(−|heading error| / scale) about the transect's heading,
+    weighted; unweighted (the default) the env has no such term, so its metrics keep their keys."""
+    weighted = mj.make(ENV, **{"reward.heading_precision": 2.0, "reward.heading_precision_scale": 0.1})
+    state = jax.jit(weighted.reset)(jax.random.PRNGKey(2))
+    state = jax.jit(weighted.step)(state, jnp.zeros(weighted.action_size))
+    yaw_error = float(heading_error(weighted.plant.vehicle_state(state.pipeline_state).quaternion, state.info["task"].yaw))
+    assert 0.01 < abs(yaw_error) < math.radians(10.0)  # a start heading off the transect's, within start_heading_error
+    assert float(state.metrics["reward/heading_precision"]) == pytest.approx(2.0 * math.exp(-abs(yaw_error) / 0.1), rel=1e-5)
+    plain = mj.make(ENV)
+    assert "reward/heading_precision" not in jax.jit(plain.step)(jax.jit(plain.reset)(jax.random.PRNGKey(2)), jnp.zeros(plain.action_size)).metrics
 
 
 def test_touching_the_seabed_ends_the_episode():

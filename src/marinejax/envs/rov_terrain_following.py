@@ -29,7 +29,8 @@ episode ends, a failure), `collision` (1: the hull touched the seabed, which end
 its first `settle` s; an episode succeeds below 0.2 m, without contact.
 Reward: `position` on the distance to the reference point at the commanded altitude over the seabed
 below the vehicle, `precision` on the altitude error alone, the attitude terms towards the
-transect's heading, and `collision`.
+transect's heading, and `collision`; where weighted, station keeping's `heading_precision`, sharp
+about the transect's heading (weight 0 by default).
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_error
 from marinejax.envs.terrain_following import (BLOCK_HALF_HEIGHT, BLOCKS, altitude_from_dvl, block_centres, check_terrain_config,
                                               check_terrain_scene, draw_terrain_episode, hull_clearance, seabed_z)
 from marinejax.frames import quat_from_euler, quat_to_mat
@@ -189,9 +190,12 @@ class RovTerrainFollowing(MarineEnv):
         r = self.config.reward
         target = jnp.stack([self._reference_x(info), 0.0, task.ground + task.altitude])  # true: rewards see the exact state
         altitude_error = jnp.abs(vs.position[2] - task.ground - task.altitude)
-        return {
+        terms = {
             "position": distance_terms(jnp.linalg.norm(target - vs.position), r)["position"],
             "precision": distance_terms(altitude_error, r)["precision"],
             **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
             "collision": -(hull_clearance(self._hull, vs, task.tops) < 0).astype(jnp.float32),
         }
+        if r.heading_precision:  # station keeping's sharp heading term, only where weighted (the metrics keep their keys)
+            terms["heading_precision"] = jnp.exp(-jnp.abs(heading_error(vs.quaternion, task.yaw)) / r.heading_precision_scale)
+        return terms
