@@ -55,7 +55,7 @@ import numpy as np
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs.base import RewardConfig, distance_terms, heading_error
+from marinejax.envs.base import RewardConfig, distance_terms, heading_error, heading_precision_term
 from marinejax.envs.cruising import CruisingConfig, CruisingEnv, current_drift, current_margin, speeds_through_water, weakest_fins
 from marinejax.errors import UserError
 from marinejax.frames import quat_to_mat
@@ -252,6 +252,6 @@ class Autopilot(CruisingEnv):
             "progress": jnp.sign(e) * climb,
             "speed": jnp.exp(-jnp.abs(speed - vs.velocity[0]) / r.speed_scale),
             "speed_penalty": -jnp.abs(speed - vs.velocity[0]),
-            "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, heading)) / r.heading_precision_scale),
+            "heading_precision": heading_precision_term(vs.quaternion, heading, r),
             **terms,
         }

@@ -197,6 +197,12 @@ def heading_error(quat: jnp.ndarray, target_yaw: jnp.ndarray) -> jnp.ndarray:
     return jnp.arctan2(jnp.sin(target_yaw - yaw), jnp.cos(target_yaw - yaw))
 
 
+def heading_precision_term(quat: jnp.ndarray, target_yaw: jnp.ndarray, reward: RewardConfig) -> jnp.ndarray:
+    """The sharp heading reward term exp(−|heading error| / heading_precision_scale), unweighted, of
+    the attitude `quat` towards heading `target_yaw` (rad)."""
+    return jnp.exp(-jnp.abs(heading_error(quat, target_yaw)) / reward.heading_precision_scale)
+
+
 class MarineEnv(Env):
     """Base of the registered tasks: a Brax Env (reset(rng) -> State, step(state, action) -> State).
 

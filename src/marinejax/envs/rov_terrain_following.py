@@ -44,7 +44,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from marinejax.config import check_range
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_error
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_precision_term
 from marinejax.envs.terrain_following import (BLOCK_HALF_HEIGHT, BLOCKS, altitude_from_dvl, block_centres, check_terrain_config,
                                               check_terrain_scene, draw_terrain_episode, hull_clearance, seabed_z)
 from marinejax.frames import quat_from_euler, quat_to_mat
@@ -197,5 +197,5 @@ class RovTerrainFollowing(MarineEnv):
             "collision": -(hull_clearance(self._hull, vs, task.tops) < 0).astype(jnp.float32),
         }
         if r.heading_precision:  # station keeping's sharp heading term, only where weighted (the metrics keep their keys)
-            terms["heading_precision"] = jnp.exp(-jnp.abs(heading_error(vs.quaternion, task.yaw)) / r.heading_precision_scale)
+            terms["heading_precision"] = heading_precision_term(vs.quaternion, task.yaw, r)
         return terms

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_error
+from marinejax.envs.base import EnvConfig, MarineEnv, RewardConfig, distance_terms, heading_precision_term
 from marinejax.physics import VehicleState
 
 
@@ -79,6 +79,6 @@ class StationKeeping(MarineEnv):
         r = self.config.reward
         return {
             **distance_terms(d, r),
-            "heading_precision": jnp.exp(-jnp.abs(heading_error(vs.quaternion, task.yaw)) / r.heading_precision_scale),
+            "heading_precision": heading_precision_term(vs.quaternion, task.yaw, r),
             **self._attitude_terms(vs, task.yaw, action, info["last_action"]),
         }
