@@ -221,8 +221,8 @@ _TUNED_ENVS.update({f"{vehicle}-Docking{d}": _docking_from_station_keeping(vehic
 # heading term. With the tracking recipe and the task's broad heading term alone the Heavy's seeds 0-4
 # held the transect's heading only to 15-22°; with these, within 0.29-0.64° at about the same altitude
 # error (0.031-0.044 m, was 0.030-0.055 m) in 123-186 s of training instead of 239-302 s
-# (docs/results.md). Measured on the Heavy's
-# nominal task; the BlueROV2 and the disturbed variants take the same settings, not yet trained.
+# (docs/results.md). Measured on the Heavy's nominal task; the BlueROV2 and the disturbed variants
+# take the same settings, not yet trained.
 _ROV_TERRAIN = (dataclasses.replace(_TRACKING, cpu_devices=2, **_DECAYING_RATE),
                 {"reward.heading_precision": 1.0, "reward.heading_precision_scale": 0.1})
 _TUNED_ENVS.update({f"{vehicle}-TerrainFollowing{d}": _ROV_TERRAIN for vehicle in ("BlueROV2Heavy", "BlueROV2")
