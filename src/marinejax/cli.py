@@ -383,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("eval", parents=[common], help="evaluate a run directory, checkpoint or classical controller: statistics, path plot, video")
     ev.add_argument("path", help="run directory (its best checkpoint), a checkpoint directory, or with --controller an env name")
-    ev.add_argument("--controller", choices=["pid", "lqr", "autopilot", "los", "avoid"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
+    ev.add_argument("--controller", choices=["pid", "lqr", "autopilot", "los", "terrain", "avoid"], help="evaluate this classical controller (tuned first) on the env PATH instead of a policy")
     ev.add_argument("--checkpoint", choices=["best", "latest"], default="best",
                     help="for a run directory: the checkpoint with the lowest evaluation error during training, or with "
                          "best_on=targets the nearest to meeting every target (default), or the newest")

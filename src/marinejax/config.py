@@ -90,15 +90,17 @@ def to_dict(config: Any) -> dict[str, Any]:
     return dataclasses.asdict(config)
 
 
-def check_fields(section: str, config: Any, strict: bool = False) -> None:
+def check_fields(section: str, config: Any, strict: bool = False, zero_allowed: tuple[str, ...] = ()) -> None:
     """Raise UserError unless every numeric field of the dataclass `config` is finite and >= 0
-    (> 0 when `strict`); `section` is the dotted config key of `config` for the message."""
+    (> 0 when `strict`, except the fields named in `zero_allowed`); `section` is the dotted config
+    key of `config` for the message."""
     for f in dataclasses.fields(config):
         value = getattr(config, f.name)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             continue
-        if not (math.isfinite(value) and (value > 0 if strict else value >= 0)):
-            raise UserError(f"config '{section}.{f.name}' must be finite and {'>' if strict else '>='} 0, got {value!r}")
+        positive = strict and f.name not in zero_allowed
+        if not (math.isfinite(value) and (value > 0 if positive else value >= 0)):
+            raise UserError(f"config '{section}.{f.name}' must be finite and {'>' if positive else '>='} 0, got {value!r}")
 
 
 def check_range(name: str, value: Any, low: float | None = None, positive: bool = False) -> None:

@@ -41,6 +41,10 @@ On a path-following task (`los`) the same loops take their pitch and heading com
 line-of-sight guidance (`_line_of_sight`, Fossen 2021 section 12.4) with its distance Δ tuned by `tune`,
 the path's curvature as a yaw-rate feedforward and an integral on the heading error (the rudder a
 steady turn needs).
+On terrain following (`terrain`) the depth loop anticipates the seabed: its error is the measured
+altitude error blended with the one over the seabed the sonar sees ahead (`altitude_error_ahead`,
+3-10 m ahead), (1 − w) e + w e_ahead, with the weight w tuned by `tune` and the depth gain the
+autopilot's tuning on that task (0.8 rad per m).
 
 Obstacle avoidance (`avoid_controller`): follow-the-gap on the sonar's range image steering the PID
 towards a point ahead on the free beam nearest the goal (`_avoid_law`), its safe range tuned by `tune`.
@@ -288,9 +292,14 @@ class TorpedoAutopilotConfig:
     speed_gains: tuple[float, float] = (0.5, 0.1)  # propeller command per m/s, per m
     lookahead: float = 10.0  # m, line-of-sight distance Δ (path following; tuned)
     heading_integral_time: float = 10.0  # s (path following: the steady rudder of a turn)
+    # weight of the altitude error over the seabed the sonar sees ahead in the depth error (terrain
+    # following's `altitude_error_ahead`; 0: the measured altitude error alone; tuned)
+    seabed_ahead: float = 0.0
 
     def __post_init__(self):
-        check_fields("TorpedoAutopilotConfig", self, strict=True)
+        check_fields("TorpedoAutopilotConfig", self, strict=True, zero_allowed=("seabed_ahead",))
+        if not self.seabed_ahead <= 1.0:
+            raise UserError(f"TorpedoAutopilotConfig 'seabed_ahead' must be within [0, 1], got {self.seabed_ahead}")
         check_nonnegative(self, ("pitch_gains", "speed_gains"), "TorpedoAutopilotConfig")
 
 
@@ -322,9 +331,20 @@ def _torpedo(env: MarineEnv) -> _Torpedo:
 
 def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarray:
     c = config
+    if c.seabed_ahead and "altitude_error_ahead" not in env.observation_fields():
+        raise UserError(f"TorpedoAutopilotConfig 'seabed_ahead' ({c.seabed_ahead}) needs the sonar's altitude error ahead: "
+                        f"terrain following with 'lookahead' true; {env.vehicle.name!r} on {type(env).__name__} has none")
     return np.array([c.depth_gain, 1.0 / c.depth_integral_time, c.max_pitch, *c.pitch_gains, c.heave_gain, c.heading_gain,
                      c.heading_gain * c.heading_derivative_time, c.top_speed, *c.speed_gains, c.lookahead,
-                     c.heading_gain / c.heading_integral_time])
+                     c.heading_gain / c.heading_integral_time, c.seabed_ahead])
+
+
+def _terrain(env: MarineEnv) -> _Torpedo:
+    """The torpedo autopilot's model, on a terrain-following task that observes the seabed ahead."""
+    if "altitude_error_ahead" not in env.observation_fields():
+        raise UserError(f"the terrain autopilot anticipates the seabed the sonar sees ahead: it needs terrain following with "
+                        f"'lookahead' true (a torpedo AUV's); {env.vehicle.name!r} on {type(env).__name__} has no such field")
+    return _torpedo(env)
 
 
 def _torpedo_law(t: _Torpedo, gains) -> Controller:
@@ -347,6 +367,8 @@ def _torpedo_law(t: _Torpedo, gains) -> Controller:
             rudder = -kpsi * heading_error + kr * (omega[2] - rate_cmd) - g[13] * i_heading  # positive: to starboard
         else:
             depth_error = obs[f["depth_error"]][0]  # set-point − depth (m, world z up): positive = rise
+            if "altitude_error_ahead" in f:  # terrain following: blended with the seabed ahead (weight 0 by default)
+                depth_error = (1.0 - g[14]) * depth_error + g[14] * obs[f["altitude_error_ahead"]][0]
             s, c = obs[f["heading"]]
             heading_error = jnp.arctan2(s, c)
             pitch_cmd = jnp.clip(kz * (depth_error + kiz * i_depth), -max_pitch, max_pitch)
@@ -481,6 +503,9 @@ TUNING_GRIDS = {
     "los": ("line-of-sight distance (m)", (2.5, 5.0, 10.0, 20.0),
             lambda d: TorpedoAutopilotConfig(heading_gain=5.0, heading_derivative_time=1.0, lookahead=d),
             _torpedo_design, _torpedo_law, _torpedo),
+    # the autopilot anticipating the seabed (terrain following), at the depth gain the autopilot's tuning picks there
+    "terrain": ("weight of the seabed ahead", (0.0, 0.15, 0.3, 0.45),
+                lambda w: TorpedoAutopilotConfig(depth_gain=0.8, seabed_ahead=w), _torpedo_design, _torpedo_law, _terrain),
     "avoid": ("safe sonar range (m)", (2.0, 3.0, 4.0, 6.0), lambda d: AvoidConfig(safe_range=d), _avoid_design,
               _avoid_law, _avoid_model),
 }

@@ -152,17 +152,87 @@ def test_the_classical_autopilot_on_the_altimeter_follows_the_terrain(env, tmp_p
     np.testing.assert_array_equal(trace.hit, out["sonar"][0] < env.config.sensors.sonar.max_range)
 
 
+def test_the_terrain_autopilot_anticipates_the_seabed_the_sonar_sees(env):
+    """The autopilot blending the altitude error over the sonar's echoes ahead into its depth error
+    (`controllers`, "terrain"): tuning runs the grid of weights in one call; weight 0 is the
+    autopilot's depth loop alone, and weighting the seabed ahead lowers the error by a third or more;
+    a task without the field is refused."""
+    from marinejax.controllers import TUNING_GRIDS, make_controller, tune
+
+    config, errors = tune("terrain", env, episodes=8)
+    assert set(errors) == set(TUNING_GRIDS["terrain"][1]) and config.depth_gain == 0.8
+    assert config.seabed_ahead > 0 and errors[config.seabed_ahead] < 0.67 * errors[0.0] and errors[0.0] < 0.3
+    with pytest.raises(UserError, match="'lookahead' true"):
+        make_controller("terrain", mj.make("Remus100-Autopilot"))
+    with pytest.raises(UserError, match="'seabed_ahead'"):
+        torpedo_autopilot(mj.make("Remus100-Autopilot"), TorpedoAutopilotConfig(seabed_ahead=0.3))
+    with pytest.raises(UserError, match="'seabed_ahead' must be within"):
+        TorpedoAutopilotConfig(seabed_ahead=1.5)
+
+
 def test_the_autopilot_policy_can_start_it():
     """The observation extends the autopilot's: every field of the autopilot's is in terrain
-    following's with its size, so `--ppo init_from=Remus100-Autopilot` can start it; the altimeter's
-    and the sonar's are new (first-layer weights 0)."""
+    following's with its size, so `--ppo init_from=Remus100-Autopilot` can start it; the seabed ahead,
+    the altimeter's and the sonar's fields are new (first-layer weights 0)."""
     from marinejax.train.ppo import input_rows
 
     source, env = mj.make("Remus100-Autopilot"), mj.make(ENV)
     rows = input_rows(source, env, "Remus100-Autopilot")
     f = env.observation_fields()
     new = np.nonzero(rows < 0)[0]
-    np.testing.assert_array_equal(new, np.arange(f["altimeter"].start, f["sonar"].stop))
+    np.testing.assert_array_equal(new, np.r_[f["altitude_error_ahead"].start:f["distance_ahead"].stop,
+                                             f["altimeter"].start:f["sonar"].stop])
+
+
+def test_lookahead_observes_the_seabed_the_sonar_sees_ahead_and_the_smooth_reward_its_profile():
+    """With `lookahead`, two fields after the autopilot's: the altitude error over the sonar's echoes
+    (the set-point minus the origin's height over the block where they land) and how far ahead they
+    lie; with `smooth_reward`, the altitude terms about the profile through the blocks' centres
+    (linear between them), the statistics still about the block below."""
+    from marinejax.envs.base import distance_terms
+    from marinejax.envs.terrain_following import block_centres, profile_z, seabed_z
+
+    env = mj.make(ENV, smooth_reward=True, sensors={"sonar": {"ideal": True}})
+    f = env.observation_fields()
+    plain = mj.make(ENV, lookahead=False).observation_fields()
+    assert (f["altitude_error_ahead"].start, f["distance_ahead"].start) == (plain["last_action"].stop, plain["last_action"].stop + 1)
+    assert "altitude_error_ahead" not in plain and f["sonar"].stop == plain["sonar"].stop + 2
+    states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(1), 16))
+    states = jax.jit(jax.vmap(env.step))(states, jnp.zeros((16, env.action_size)))
+    task, q = states.info["task"], states.pipeline_state.physics.data.qpos
+    q = np.asarray(q)
+    x, z = q[:, 0], q[:, 2]
+    distance = np.asarray(states.obs[:, f["distance_ahead"]])[:, 0]
+    assert np.all((distance > 3.0) & (distance < 15.0))  # 20° down from 1.5-3 m over a seabed of 20 % slopes
+    # the echoes, from the ranges along the fan's beams turned to the world: on the seabed (frames right)
+    sonar = env.plant.scene_sensors.sensors["sonar"]
+    rot = np.asarray(jax.vmap(quat_to_mat)(q[:, 3:7]))
+    ranges = np.asarray(states.info["scene_sensors"]["sonar"].reading.ranges)
+    echoes = (q[:, None, :3] + np.einsum("nij,j->ni", rot, np.asarray(sonar.mount))[:, None]
+              + ranges[..., None] * np.einsum("nij,bj->nbi", rot, np.asarray(sonar.directions[:, 0])))
+    below = np.asarray(jax.vmap(seabed_z)(task.tops, jnp.asarray(echoes[..., 0])))
+    edge = np.abs(((echoes[..., 0] - FIRST_BLOCK_X) / BLOCK_LENGTH + 0.5) % 1.0 - 0.5) * BLOCK_LENGTH
+    assert (edge > 0.05).mean() > 0.8
+    np.testing.assert_allclose(echoes[..., 2][edge > 0.05], below[edge > 0.05], atol=1e-3)
+    # the field: the set-point minus the height over their mean, their mean distance along the heading
+    expected = np.asarray(task.altitude) - (z - echoes[..., 2].mean(axis=1))
+    np.testing.assert_allclose(np.asarray(states.obs[:, f["altitude_error_ahead"]])[:, 0], expected, atol=1e-4)
+    heading = rot[:, :2, 0] / np.linalg.norm(rot[:, :2, 0], axis=1, keepdims=True)
+    np.testing.assert_allclose(distance, np.einsum("nbi,ni->nb", echoes[..., :2] - q[:, None, :2], heading).mean(axis=1), atol=1e-4)
+    # the smooth reward: the profile through the blocks' centres
+    centres = block_centres(32)
+    tops = np.asarray(task.tops)
+    np.testing.assert_allclose(np.asarray(profile_z(task.tops[0], jnp.asarray(centres), jnp.asarray(centres[3:5]))), tops[0, 3:5], atol=1e-6)
+    np.testing.assert_allclose(float(profile_z(task.tops[0], jnp.asarray(centres), jnp.asarray(centres[3] + 1.0))),
+                               0.75 * tops[0, 3] + 0.25 * tops[0, 4], atol=1e-5)
+    e = np.abs(np.asarray(jax.vmap(profile_z, (0, None, 0))(task.tops, jnp.asarray(centres), jnp.asarray(x))) + np.asarray(task.altitude) - z)
+    r = env.config.reward
+    np.testing.assert_allclose(np.asarray(states.metrics["reward/position"]), r.position * np.asarray(distance_terms(e, r)["position"]), rtol=1e-4)
+    np.testing.assert_allclose(np.asarray(states.metrics["position_error"]),
+                               np.abs(np.asarray(jax.vmap(seabed_z)(task.tops, jnp.asarray(x))) + np.asarray(task.altitude) - z), atol=1e-4)
+    assert np.max(np.abs(e - np.asarray(states.metrics["position_error"]))) > 0.01  # they differ
+    with pytest.raises(UserError, match="'lookahead' needs 'sensors.sonar.enabled'"):
+        mj.make(ENV, lookahead=True, sensors={"sonar": {"enabled": False}})
 
 
 def test_bad_settings_are_refused():

@@ -372,7 +372,7 @@ def test_list_shows_what_exists_and_eval_offers_every_controller():
     proc = marinejax("list")
     assert proc.returncode == 0, proc.stderr
     for expected in ("remus100_four_fin", "torpedo", "WaypointFollowing", "Remus100-CircleFollowingDisturbed",
-                     "autopilot, los, avoid", "BlueROV2Heavy-StationKeeping", "open_water, pillars, rov_dock"):
+                     "autopilot, los, terrain, avoid", "BlueROV2Heavy-StationKeeping", "open_water, pillars, rov_dock"):
         assert expected in proc.stdout
     from marinejax.cli import build_parser
     from marinejax.controllers import CONTROLLERS

@@ -234,8 +234,12 @@ class Autopilot(CruisingEnv):
             self.scaled_actuators(vs), action,
         ])
 
+    def rewarded_set_point(self, vs: VehicleState, info):
+        """(depth m, heading rad, speed m/s) the reward's terms are about: the set-points of the step just taken."""
+        return self.set_point(info)
+
     def reward_terms(self, vs: VehicleState, info, action):
-        depth, heading, speed = self.set_point(info)
+        depth, heading, speed = self.rewarded_set_point(vs, info)
         e = depth - vs.position[2]
         climb = quat_to_mat(vs.quaternion)[2, :] @ vs.velocity  # m/s, world z (up)
         r = self.config.reward

@@ -149,6 +149,9 @@ OBSERVATION_FIELDS = {
     "angular_velocity": ("rad/s", "body", "angular velocity"),
     "actuators": ("1", "-", "actuator states, each scaled to [-1, 1] by its command range"),
     "last_action": ("1", "-", "the previous action, in [-1, 1]"),
+    "altitude_error_ahead": ("m", "world z", "altitude set-point minus the height over the seabed the sonar's echoes show "
+                                             "ahead (terrain following), clipped to ±depth_clip"),
+    "distance_ahead": ("m", "world", "how far ahead those echoes lie, horizontally along the heading"),
     "dock": ("m", "body", "the dock's latch point (its tube's entrance on the axis) minus the torpedo's nose; "
                           "the ROV station's landing point minus the CG"),
     "integral_position": ("m s", "body", "leaky integral of the position error"),

@@ -23,14 +23,17 @@ turned vertical and moved to the origin, the last valid one held while the DVL h
 Observation: the autopilot's (`autopilot` module docstring), so its policy can start this task, with
   [0]    the altitude error, set-point − measured altitude (m; positive: rise), clipped to ±`depth_clip`
   [13]   the world z (m) / 10 at which the measured altitude would be the set-point
-and the integral of that altitude error, then the altimeter's altitude and the sonar's ranges
+then, with `lookahead` (the default), the seabed the sonar sees ahead (`seabed_ahead`): the altitude
+error over its echoes (m, clipped as [0]) and how far ahead they lie (m, horizontally along the
+heading); the integral of the altitude error, then the altimeter's altitude and the sonar's ranges
 (scene sensors, appended by the base).
 Statistics: `position_error` is the altitude error |set-point − altitude| (m), with `heading_error_deg`,
 `speed_error` (m/s), `collision` (1: the hull touched the seabed, which ends the episode),
 `clearance` (m, the hull's lowest point above the seabed) and `cross_track_error` (m off the transect
 line y = 0; beyond `max_cross_track` the episode ends, a failure: the seabed varies along x only);
 the evaluation window is the episode after its first `settle` s; an episode succeeds below 0.2 m.
-Reward: the autopilot's terms on the altitude error, and `collision`.
+Reward: the autopilot's terms on the altitude error (with `smooth_reward`, on the altitude over the
+seabed's profile, `profile_z`), and `collision`.
 """
 
 from __future__ import annotations
@@ -96,6 +99,12 @@ def seabed_z(tops: jnp.ndarray, x: jnp.ndarray) -> jnp.ndarray:
     """World z (m) of the seabed at world x (m; any shape): the top of the block there."""
     i = jnp.clip(jnp.floor((x - FIRST_BLOCK_X) / BLOCK_LENGTH).astype(jnp.int32), 0, tops.shape[0] - 1)
     return tops[i]
+
+
+def profile_z(tops: jnp.ndarray, centres: jnp.ndarray, x: jnp.ndarray) -> jnp.ndarray:
+    """World z (m) of the seabed's profile at world x (m): the blocks' tops linear between their
+    centres (`centres`, m), flat beyond the first and last."""
+    return jnp.interp(x, centres, tops)
 
 
 def check_terrain_config(config) -> None:
@@ -164,6 +173,14 @@ class TerrainFollowingConfig(AutopilotConfig):
     sensors: SensorConfig = SensorConfig(altimeter=AltimeterConfig(enabled=True),
                                          sonar=SonarConfig(enabled=True, beams=8, horizontal_fov=math.radians(40.0),
                                                            tilt=math.radians(20.0)))
+    # observe the seabed the sonar sees ahead: the altitude error over its echoes and how far ahead they
+    # are (`seabed_ahead`), after the autopilot's fields. The classical autopilot blending it into its
+    # depth error holds 0.088 m instead of 0.167 m (`controllers`, "terrain"; docs/results.md)
+    lookahead: bool = True
+    # the reward's altitude terms about the seabed's profile through the blocks' centres (linear between
+    # them, `profile_z`) instead of the block below: a target without the staircase's jumps, which a
+    # vehicle flying it exactly misses by 0.065 m on average (the statistics stay on the block below)
+    smooth_reward: bool = False
     # the autopilot's terms with sharper altitude terms: its depth terms are made for steps of metres
     # (position scale 1 m), the altitude errors here are tenths of a metre; and the collision penalty
     reward: RewardConfig = dataclasses.replace(AutopilotConfig.reward, position_scale=0.25, precision=3.0, collision=10.0)
@@ -173,6 +190,8 @@ class TerrainFollowingConfig(AutopilotConfig):
         if self.segments != 1:
             raise UserError(f"config 'segments' must be 1 for terrain following (one altitude, heading and speed), got {self.segments}")
         check_terrain_config(self)
+        if self.lookahead and not self.sensors.sonar.enabled:
+            raise UserError("config 'lookahead' needs 'sensors.sonar.enabled' true: the seabed ahead is the sonar's echoes")
 
 
 @struct.dataclass
@@ -202,6 +221,10 @@ class TerrainFollowing(Autopilot):
         # world x of the blocks' centres, in the order of `movable_geoms`
         self._centres = jnp.asarray(block_centres(len(config.movable_geoms)), jnp.float32)
         check_terrain_scene(self)
+        if config.lookahead:
+            sonar = self.plant.scene_sensors.sensors["sonar"]
+            self._sonar_mount = sonar.mount
+            self._sonar_directions = jnp.mean(sonar.directions, axis=1)  # (beams, 3) body: each beam's centre (unit with 1 row)
 
     def error_window(self, time):
         return self.after(time, self.config.settle)
@@ -262,13 +285,49 @@ class TerrainFollowing(Autopilot):
         task: TerrainTask = info["task"]
         return super().integral_error(vs, info).at[2].set(task.altitude - self.measured_altitude(vs, info))
 
+    def task_observation_fields(self) -> dict[str, slice]:
+        fields = super().task_observation_fields()
+        if not self.config.lookahead:
+            return fields
+        end = fields["last_action"].stop
+        return {**fields, "altitude_error_ahead": slice(end, end + 1), "distance_ahead": slice(end + 1, end + 2)}
+
+    def seabed_ahead(self, vs: VehicleState, info, error: jnp.ndarray) -> jnp.ndarray:
+        """(altitude error m, distance m) of the seabed the sonar's echoes show ahead: the altitude
+        set-point minus the origin's height over the echoes, and how far ahead of the origin they lie
+        horizontally along the heading, means over the beams with an echo; without one, `error` (the
+        altimeter's) and 0."""
+        reading = info["scene_sensors"]["sonar"].reading
+        rot = quat_to_mat(vs.quaternion)
+        echoes = rot @ self._sonar_mount + reading.ranges[:, None] * (self._sonar_directions @ rot.T)  # (beams, 3) m, world, from the origin
+        forward = rot[:2, 0] / jnp.maximum(jnp.linalg.norm(rot[:2, 0]), 1e-6)  # the heading's horizontal unit vector
+        hits = reading.hit.astype(jnp.float32)
+        count = jnp.sum(hits)
+        height = -jnp.sum(hits * echoes[:, 2]) / jnp.maximum(count, 1.0)
+        distance = jnp.sum(hits * (echoes[:, :2] @ forward)) / jnp.maximum(count, 1.0)
+        seen = count > 0
+        return jnp.stack([jnp.where(seen, info["task"].altitude - height, error), jnp.where(seen, distance, 0.0)])
+
     def observe(self, vs: VehicleState, info, action):
         task: TerrainTask = info["task"]
+        c = self.config
         error = task.altitude - self.measured_altitude(vs, info)
         obs = super().observe(vs, info, action)
         fields = self.task_observation_fields()
-        obs = obs.at[fields["depth_error"]].set(jnp.clip(error, -self.config.depth_clip, self.config.depth_clip))
-        return obs.at[fields["set_point_depth"]].set((vs.position[2] + error) / 10.0)
+        obs = obs.at[fields["depth_error"]].set(jnp.clip(error, -c.depth_clip, c.depth_clip))
+        obs = obs.at[fields["set_point_depth"]].set((vs.position[2] + error) / 10.0)
+        if not c.lookahead:
+            return obs
+        ahead = self.seabed_ahead(vs, info, error)
+        return jnp.concatenate([obs, jnp.clip(ahead[:1], -c.depth_clip, c.depth_clip), ahead[1:]])
+
+    def rewarded_set_point(self, vs: VehicleState, info):
+        """The set-points, the depth over the seabed's profile under the vehicle with `smooth_reward`."""
+        depth, heading, speed = self.set_point(info)
+        if not self.config.smooth_reward:
+            return depth, heading, speed
+        task: TerrainTask = info["task"]
+        return profile_z(task.tops, self._centres, vs.position[0]) + task.altitude, heading, speed
 
     def clearance(self, vs: VehicleState, tops: jnp.ndarray) -> jnp.ndarray:
         """Height (m) of the hull's lowest point above the seabed (`hull_clearance`)."""
