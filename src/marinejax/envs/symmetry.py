@@ -28,6 +28,7 @@ FIELD_SIGNS: dict[str, tuple[int, ...] | str] = {
     "tangent": _VECTOR, "up": _VECTOR, "velocity": _VECTOR, "dock": _VECTOR, "integral_position": _VECTOR,
     "angular_velocity": _PSEUDO,
     "depth_error": (1,), "speed_error": (1,), "set_point_depth": (1,), "set_point_speed": (1,),
+    "altitude_error_ahead": (1,), "distance_ahead": (1,),
     "set_point_heading": _SIN_COS, "heading": _SIN_COS, "integral_heading": (-1,),
     "actuators": "action", "last_action": "action",
 }
