@@ -111,7 +111,8 @@ _AUTOPILOT_1E4 = dataclasses.replace(_STATION, num_timesteps=20_000_000, discoun
 _TUNED["Autopilot"] = (dataclasses.replace(_AUTOPILOT_1E4, entropy_cost=1e-2, num_timesteps=18_000_000, cpu_devices=2,
                                            fixed_eval_episodes=True, best_on="targets", **_DECAYING_RATE), {})
 # Terrain following: the autopilot's recipe with the entropy 1e-4 of its measurements, from scratch:
-# seeds 0, 1 and 3 at 0.17-0.29 m (the classical autopilot 0.167 m; anticipating the seabed ahead,
+# seeds 0, 1 and 3 at 0.17-0.29 m, measured before the task observed the seabed ahead (the classical
+# autopilot 0.167 m; anticipating the seabed ahead,
 # 0.088 m). Its observation extends the autopilot's, but the shipped autopilot policy (0.29 m before
 # training) fine-tuned for 2-4 M steps did not improve on seed 0 (learning rates 1e-3, 3e-4, 1e-4: 0.28
 # m at best, later 0.30-0.41 m). With the seabed ahead observed, the nominal autopilot's recipe at 12 M
