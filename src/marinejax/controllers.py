@@ -43,7 +43,7 @@ the path's curvature as a yaw-rate feedforward and an integral on the heading er
 steady turn needs).
 On terrain following (`terrain`) the depth loop anticipates the seabed: its error is the measured
 altitude error blended with the one over the seabed the sonar sees ahead (`altitude_error_ahead`,
-3-10 m ahead), (1 − w) e + w e_ahead, with the weight w tuned by `tune` and the depth gain the
+about 4-12 m ahead), (1 − w) e + w e_ahead, with the weight w tuned by `tune` and the depth gain the
 autopilot's tuning on that task (0.8 rad per m).
 
 Obstacle avoidance (`avoid_controller`): follow-the-gap on the sonar's range image steering the PID
