@@ -339,13 +339,6 @@ def _torpedo_design(env: MarineEnv, config: TorpedoAutopilotConfig) -> np.ndarra
                      c.heading_gain / c.heading_integral_time, c.seabed_ahead])
 
 
-def _terrain(env: MarineEnv) -> _Torpedo:
-    """The torpedo autopilot's model, on a terrain-following task that observes the seabed ahead."""
-    if "altitude_error_ahead" not in env.observation_fields():
-        raise UserError(f"the terrain autopilot anticipates the seabed the sonar sees ahead: it needs terrain following with "
-                        f"'lookahead' true (a torpedo AUV's); {env.vehicle.name!r} on {type(env).__name__} has no such field")
-    return _torpedo(env)
-
 
 def _torpedo_law(t: _Torpedo, gains) -> Controller:
     """The controller with gains `_torpedo_design` (NumPy or traced JAX) on the task `t` reads: the
@@ -505,7 +498,7 @@ TUNING_GRIDS = {
             _torpedo_design, _torpedo_law, _torpedo),
     # the autopilot anticipating the seabed (terrain following), at the depth gain the autopilot's tuning picks there
     "terrain": ("weight of the seabed ahead", (0.0, 0.15, 0.3, 0.45),
-                lambda w: TorpedoAutopilotConfig(depth_gain=0.8, seabed_ahead=w), _torpedo_design, _torpedo_law, _terrain),
+                lambda w: TorpedoAutopilotConfig(depth_gain=0.8, seabed_ahead=w), _torpedo_design, _torpedo_law, _torpedo),
     "avoid": ("safe sonar range (m)", (2.0, 3.0, 4.0, 6.0), lambda d: AvoidConfig(safe_range=d), _avoid_design,
               _avoid_law, _avoid_model),
 }

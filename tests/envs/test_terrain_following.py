@@ -199,8 +199,7 @@ def test_lookahead_observes_the_seabed_the_sonar_sees_ahead_and_the_smooth_rewar
     assert "altitude_error_ahead" not in plain and f["sonar"].stop == plain["sonar"].stop + 2
     states = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(1), 16))
     states = jax.jit(jax.vmap(env.step))(states, jnp.zeros((16, env.action_size)))
-    task, q = states.info["task"], states.pipeline_state.physics.data.qpos
-    q = np.asarray(q)
+    task, q = states.info["task"], np.asarray(states.pipeline_state.physics.data.qpos)
     x, z = q[:, 0], q[:, 2]
     distance = np.asarray(states.obs[:, f["distance_ahead"]])[:, 0]
     assert np.all((distance > 3.0) & (distance < 15.0))  # 20° down from 1.5-3 m over a seabed of 20 % slopes

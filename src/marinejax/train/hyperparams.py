@@ -112,12 +112,11 @@ _TUNED["Autopilot"] = (dataclasses.replace(_AUTOPILOT_1E4, entropy_cost=1e-2, nu
                                            fixed_eval_episodes=True, best_on="targets", **_DECAYING_RATE), {})
 # Terrain following: the autopilot's recipe with the entropy 1e-4 of its measurements, from scratch:
 # seeds 0, 1 and 3 at 0.17-0.29 m, measured before the task observed the seabed ahead (the classical
-# autopilot 0.167 m; anticipating the seabed ahead,
-# 0.088 m). Its observation extends the autopilot's, but the shipped autopilot policy (0.29 m before
-# training) fine-tuned for 2-4 M steps did not improve on seed 0 (learning rates 1e-3, 3e-4, 1e-4: 0.28
-# m at best, later 0.30-0.41 m). With the seabed ahead observed, the nominal autopilot's recipe at 12 M
-# steps learnt the altitude (0.14 m) only while flying 0.4 m/s too fast, and lost it as it learnt the
-# speed (docs/results.md).
+# autopilot 0.167 m; anticipating the seabed ahead, 0.088 m). Its observation extends the autopilot's,
+# but the shipped autopilot policy (0.29 m before training) fine-tuned for 2-4 M steps did not improve
+# on seed 0 (learning rates 1e-3, 3e-4, 1e-4: 0.28 m at best, later 0.30-0.41 m). With the seabed ahead
+# observed, the nominal autopilot's recipe at 12 M steps learnt the altitude (0.14 m) only while flying
+# 0.4 m/s too fast, and lost it as it learnt the speed (docs/results.md).
 _TUNED["TerrainFollowing"] = (_AUTOPILOT_1E4, {})
 # Obstacle avoidance (10 Hz, 60 s episodes, the sonar in the observation): a 10 s horizon as the
 # autopilot's; seeds 0-4 succeed in 91-95 % of the evaluation episodes after 10 M steps (docs/tasks.md).
@@ -224,8 +223,8 @@ _TUNED_ENVS.update({f"{vehicle}-Docking{d}": _docking_from_station_keeping(vehic
 # heading term. With the tracking recipe and the task's broad heading term alone the Heavy's seeds 0-4
 # held the transect's heading only to 15-22°; with these, within 0.29-0.64° at about the same altitude
 # error (0.031-0.044 m, was 0.030-0.055 m) in 123-186 s of training instead of 239-302 s
-# (docs/results.md). Measured on the Heavy's nominal task; the BlueROV2 and the disturbed variants
-# take the same settings, not yet trained.
+# (docs/results.md). On seeds 0-4 the BlueROV2 holds 0.048-0.065 m and the disturbed Heavy 0.031-0.042 m;
+# the disturbed BlueROV2 0.090-0.303 m, one seed over the 0.2 m target (docs/results.md).
 _ROV_TERRAIN = (dataclasses.replace(_TRACKING, cpu_devices=2, **_DECAYING_RATE),
                 {"reward.heading_precision": 1.0, "reward.heading_precision_scale": 0.1})
 _TUNED_ENVS.update({f"{vehicle}-TerrainFollowing{d}": _ROV_TERRAIN for vehicle in ("BlueROV2Heavy", "BlueROV2")
